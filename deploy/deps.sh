@@ -1,0 +1,32 @@
+# deploy/deps.sh — sourced by deploy/setup.sh and tests/run.sh.
+# Installs the Debian 12 packages voxvis builds with, when any is missing.
+# Every dependency comes from Debian's archive; nothing is downloaded otherwise.
+
+VOXVIS_PACKAGES=(
+  build-essential cmake ninja-build pkg-config
+  libglm-dev nlohmann-json3-dev libcli11-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
+)
+
+voxvis_ensure_deps() {
+  local missing=()
+  local p
+  for p in "${VOXVIS_PACKAGES[@]}"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+  done
+  if [ ${#missing[@]} -eq 0 ]; then
+    return 0
+  fi
+  echo "voxvis: installing missing packages: ${missing[*]}" >&2
+  local sudo=()
+  if [ "$(id -u)" -ne 0 ]; then
+    if command -v sudo >/dev/null 2>&1; then
+      sudo=(sudo)
+    else
+      echo "voxvis: error: packages missing (${missing[*]}) and not root; install them with apt-get" >&2
+      return 1
+    fi
+  fi
+  "${sudo[@]}" env DEBIAN_FRONTEND=noninteractive apt-get update -q
+  "${sudo[@]}" env DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends "${missing[@]}"
+}

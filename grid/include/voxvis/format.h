@@ -1,0 +1,56 @@
+// voxvis/format.h — the batch formats (docs/formats.md is the contract):
+//   scene   JSON        {"format": "voxvis-scene/1", "bounds": ..., "objects": [...]}
+//   frames  JSON Lines  one camera (and optional moves) per line, in time order
+//   output  JSON Lines  one {"frame", "pvs", "wake", "stats"} per input frame
+//
+// Every parser here reads untrusted input: it never throws, and an error names
+// the source, the line and the field ("scene.json:12: objects[3].radius: must
+// be > 0, got -1").
+#pragma once
+
+#include <iosfwd>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "voxvis/scene.h"
+
+namespace voxvis {
+
+/// An error in an input file: where and what.
+struct FormatError {
+  std::string source;  ///< File name as given by the caller.
+  int line = 0;        ///< 1-based; 0 when no line applies.
+  std::string field;   ///< For example "objects[3].radius"; may be empty.
+  std::string message;
+  std::string str() const;
+};
+
+/// One line of a frames file.
+struct FrameInput {
+  double t = 0.0;  ///< Seconds.
+  Camera camera;
+  std::vector<Move> moves;
+  int line = 0;  ///< 1-based line in the frames file.
+};
+
+/// Parses a voxvis-scene/1 document. Checks everything Scene::create checks
+/// that can be told from the file alone (shapes, finiteness, ranges, unique
+/// ids), so that errors carry lines.
+bool parse_scene(std::string_view text, std::string_view source, SceneDesc* out,
+                 FormatError* error);
+
+/// Parses one frames line (without its newline). `line` is for messages.
+bool parse_frame_line(std::string_view text, std::string_view source, int line,
+                      FrameInput* out, FormatError* error);
+
+/// Serializes a scene to voxvis-scene/1 text (used by `voxvis generate`).
+std::string scene_to_json(const SceneDesc& scene);
+
+/// Serializes one frames line.
+std::string frame_to_json(const FrameInput& frame);
+
+/// Serializes one output line, without a newline.
+std::string result_to_json(std::size_t frame_index, const FrameResult& result);
+
+}  // namespace voxvis

@@ -1,0 +1,170 @@
+// voxvis/scene.h — the visibility engine.
+//
+// Design (Batagelo & Wu, "Dynamic scene occlusion culling using a regular
+// grid", sections 3-5; TBVs after Sudarsky & Gotsman):
+//  * A Scene owns the shared grid: static opaque bits and per-voxel id lists
+//    built once (paper 4.5), dynamic objects' ids and opacity kept up to date
+//    incrementally as they move, and temporal bounding volumes (TBVs) for
+//    dynamic objects hidden from every viewer.
+//  * A frame walks the frustum's voxels in chess-metric shells around the eye's
+//    voxel, front to back. Occlusion propagates shell by shell: every segment
+//    from the eye to a point of shell k+1 leaves the cube of shells 0..k
+//    through shell k, so a voxel is occluded when every shell-k voxel its
+//    central projection can cross is opaque or occluded. This fuses occluders
+//    in object space without cap polygons, and is conservative by
+//    construction (see docs/design.md for the argument).
+//  * Each viewer keeps only its last PVS in the scene. The per-frame layers
+//    (occluded/visited status, PVS marks) live in a Scratch that each worker
+//    thread owns and reuses across viewers and scenes.
+//
+// Thread-safety: a Scene is not internally synchronized. Frames and moves of
+// one scene must be serialized by the caller; different scenes are
+// independent. A Scratch must not be shared between threads.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <span>
+#include <vector>
+
+#include "voxvis/types.h"
+
+namespace voxvis {
+
+/// Input for Scene::create: bounds, optional resolution, objects.
+struct SceneDesc {
+  Vec3 bounds_min{0.0};  ///< World units; min < max on every axis.
+  Vec3 bounds_max{1.0};
+  std::optional<glm::ivec3> grid;  ///< Voxels per axis; empty: choose automatically.
+  std::vector<ObjectDesc> objects;
+};
+
+struct SceneOptions {
+  /// Refuse resolutions above this many voxels (before allocating anything).
+  /// The grid costs about 9 bytes a voxel plus 4 per worker Scratch.
+  std::int64_t max_voxels = std::int64_t{1} << 27;
+  /// Per-axis resolution limit.
+  int max_resolution = 8192;
+  /// Voxel count the automatic resolution aims at when none is given.
+  std::int64_t auto_voxels = 600'000;
+  /// TBV validity period in seconds; 0 chooses one per object: the time to
+  /// cross `tbv_voxels` voxels at max_speed, doubled each time the TBV expires
+  /// unrevealed (an object hidden long gets ever longer-lived TBVs), reset when
+  /// it is revealed.
+  double tbv_period = 0.0;
+  double tbv_voxels = 2.0;
+  /// Upper bound for any TBV validity period, seconds.
+  double tbv_max_period = 60.0;
+};
+
+/// Counters of one frame. All counts are for this frame only.
+struct FrameStats {
+  std::uint64_t voxels_visited = 0;   ///< Voxels whose status the traversal computed.
+  std::uint32_t shells = 0;           ///< Chess-metric shells traversed.
+  std::uint32_t objects_discretized = 0;  ///< Dynamic objects (re)written into the grid.
+  std::uint32_t tbvs_created = 0;
+  std::uint32_t tbvs_revealed = 0;    ///< TBVs reached as not occluded (or left by a move).
+  std::uint32_t tbvs_expired = 0;
+  std::uint32_t tbvs_active = 0;      ///< TBVs alive after the frame.
+  std::uint32_t speed_violations = 0; ///< Moves since the last frame faster than max_speed.
+  std::uint32_t outside_tested = 0;   ///< Objects and TBVs beyond the grid tested against the frustum.
+  std::uint32_t pvs_size = 0;
+  bool early_exit = false;            ///< Traversal stopped at a fully occluded shell.
+  double time_us = 0.0;               ///< Engine time for the frame, microseconds.
+};
+
+struct FrameResult {
+  std::vector<ObjectId> pvs;   ///< Ascending ids that may be visible.
+  std::vector<ObjectId> wake;  ///< Ascending ids of dynamic objects whose fresh
+                               ///< positions the engine needs: PVS members and
+                               ///< objects whose TBV was revealed or expired.
+  FrameStats stats;
+};
+
+/// What Scene::apply_moves saw. Moves are applied even when too fast; such an
+/// object is revealed (its TBV can no longer be trusted) and counted here.
+struct MoveReport {
+  std::uint32_t applied = 0;
+  std::vector<ObjectId> too_fast;  ///< Ids that moved faster than max_speed.
+};
+
+/// Resolution and mapping of a scene's grid.
+struct GridSpec {
+  glm::ivec3 res{1};       ///< Voxels per axis.
+  Vec3 bounds_min{0.0};    ///< World units.
+  Vec3 bounds_max{1.0};
+  Vec3 voxel_size{1.0};    ///< World units per voxel, per axis.
+  std::int64_t voxel_count() const {
+    return std::int64_t{res.x} * res.y * res.z;
+  }
+};
+
+/// Per-thread per-frame working memory. Reused across frames, viewers and
+/// scenes; grows to the largest scene it has served.
+class Scratch {
+ public:
+  Scratch();
+  ~Scratch();
+  Scratch(const Scratch&) = delete;
+  Scratch& operator=(const Scratch&) = delete;
+  struct Impl;
+  Impl& impl() { return *impl_; }
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+using ViewerId = std::uint32_t;
+
+class Scene {
+ public:
+  /// Validates `desc` (ids unique, finite values, radius > 0, min <= max,
+  /// resolution within the options) and builds the grid. On error returns the
+  /// Status naming the field; nothing is allocated for a refused resolution.
+  static Status create(const SceneDesc& desc, const SceneOptions& options,
+                       std::unique_ptr<Scene>* out);
+  /// Resolution the engine would choose for `desc` when it names none.
+  static glm::ivec3 auto_resolution(const SceneDesc& desc, const SceneOptions& options);
+
+  ~Scene();
+  Scene(const Scene&) = delete;
+  Scene& operator=(const Scene&) = delete;
+
+  const GridSpec& grid() const;
+  std::size_t object_count() const;
+  std::size_t dynamic_count() const;
+  /// Scene time, seconds: the latest time given to apply_moves or frame.
+  double time() const;
+
+  /// Adds a viewer; its first frame treats every object as possibly visible.
+  ViewerId add_viewer();
+  /// Removes a viewer and releases its claim on the objects of its last PVS.
+  void remove_viewer(ViewerId viewer);
+
+  /// Sets dynamic objects' centres at time `t` (seconds, not earlier than
+  /// time()). Validated whole before anything changes: unknown or static ids,
+  /// non-finite values and time going backwards are refused.
+  Status apply_moves(double t, std::span<const Move> moves, MoveReport* report = nullptr);
+
+  /// Computes the viewer's PVS at time `t` (not earlier than time()).
+  /// Validates the camera (finite, up not parallel to dir, 0 < fov < 180,
+  /// 0 < near < far, aspect in range) before touching any state.
+  Status frame(ViewerId viewer, const Camera& camera, double t, Scratch& scratch,
+               FrameResult* out);
+
+  /// Dynamic objects whose positions the engine currently uses: those in any
+  /// viewer's last PVS and those not yet under a TBV. Ascending ids.
+  std::vector<ObjectId> wake_set() const;
+
+  struct Impl;
+
+ private:
+  explicit Scene(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+/// Validates a camera as Scene::frame does. Exposed for the formats.
+Status validate_camera(const Camera& camera);
+
+}  // namespace voxvis

@@ -1,0 +1,77 @@
+// voxvis/types.h — the value types every layer shares: objects, cameras, moves,
+// and the status value returned at the library boundary.
+//
+// Coordinate spaces: "world" is the caller's space (double precision, any
+// units); "grid" is world mapped so that voxel (i,j,k) is the unit cube
+// [i,i+1]x[j,j+1]x[k,k+1]. The mapping is a per-axis scale and offset, so
+// voxels may be non-cubic in world space while every visibility computation
+// runs on unit cubes.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+namespace voxvis {
+
+using Vec3 = glm::dvec3;   ///< World-space point or vector, double precision.
+using ObjectId = std::uint32_t;
+
+/// Largest magnitude accepted for any world coordinate, radius, or extent.
+/// Beyond it squared distances lose the precision conservative tests need.
+inline constexpr double kMaxCoordinate = 1e12;
+
+enum class Shape : std::uint8_t { Sphere, Box };
+
+/// One object of a scene. A box is axis-aligned; it moves rigidly (its centre
+/// moves, its half extents stay).
+struct ObjectDesc {
+  ObjectId id = 0;
+  Shape shape = Shape::Sphere;
+  Vec3 center{0.0};       ///< World units. For a box, the centre of [min,max].
+  double radius = 0.0;    ///< Sphere radius, world units, > 0. Unused for boxes.
+  Vec3 half_extent{0.0};  ///< Box half size per axis, world units, >= 0. Unused for spheres.
+  bool dynamic = false;
+  double max_speed = 0.0;  ///< World units per second, >= 0; dynamic objects only.
+};
+
+/// A viewer's camera for one frame. `dir` need not be normalized; `up` must
+/// not be parallel to it. The frustum is the symmetric perspective pyramid of
+/// full vertical angle `fov_y_deg` and width/height `aspect`, cut by the planes
+/// perpendicular to `dir` at depths `near` and `far` (world units from the eye).
+struct Camera {
+  Vec3 eye{0.0};
+  Vec3 dir{0.0, 0.0, -1.0};
+  Vec3 up{0.0, 1.0, 0.0};
+  double fov_y_deg = 60.0;  ///< Degrees, in (0, 180).
+  double aspect = 1.0;      ///< Width / height, in [1e-3, 1e3].
+  double near = 0.05;       ///< World units, > 0.
+  double far = 1000.0;      ///< World units, > near.
+};
+
+/// A new centre for a dynamic object.
+struct Move {
+  ObjectId id = 0;
+  Vec3 center{0.0};  ///< World units.
+};
+
+/// The result of an operation on untrusted input: ok, or what is wrong and
+/// where. `field` names the offending input (for example "objects[3].radius"
+/// or "moves[0].id"); formats add the file and line.
+struct Status {
+  bool ok = true;
+  std::string field;
+  std::string message;
+
+  static Status Ok() { return {}; }
+  static Status Error(std::string field_name, std::string text) {
+    return Status{false, std::move(field_name), std::move(text)};
+  }
+  explicit operator bool() const { return ok; }
+  /// "field: message", or just the message when no field applies.
+  std::string str() const { return field.empty() ? message : field + ": " + message; }
+};
+
+}  // namespace voxvis

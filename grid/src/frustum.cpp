@@ -1,0 +1,131 @@
+#include "frustum.h"
+
+#include <cmath>
+#include <string>
+
+#include <glm/geometric.hpp>
+
+namespace voxvis {
+namespace {
+
+bool finite3(const Vec3& v) {
+  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+
+double max_abs(const Vec3& v) {
+  return std::fmax(std::fabs(v.x), std::fmax(std::fabs(v.y), std::fabs(v.z)));
+}
+
+std::string num(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+
+}  // namespace
+
+Status validate_camera(const Camera& c) {
+  if (!finite3(c.eye)) return Status::Error("eye", "must be three finite numbers");
+  if (max_abs(c.eye) > kMaxCoordinate)
+    return Status::Error("eye", "magnitude exceeds " + num(kMaxCoordinate));
+  if (!finite3(c.dir)) return Status::Error("dir", "must be three finite numbers");
+  if (!finite3(c.up)) return Status::Error("up", "must be three finite numbers");
+  const double dl = glm::length(c.dir);
+  if (!(dl > 0.0) || !std::isfinite(dl)) return Status::Error("dir", "must not be the zero vector");
+  const double ul = glm::length(c.up);
+  if (!(ul > 0.0) || !std::isfinite(ul)) return Status::Error("up", "must not be the zero vector");
+  const double s = glm::length(glm::cross(c.dir / dl, c.up / ul));
+  if (!(s > 1e-9)) return Status::Error("up", "must not be parallel to dir");
+  if (!std::isfinite(c.fov_y_deg) || !(c.fov_y_deg > 0.0) || !(c.fov_y_deg < 180.0))
+    return Status::Error("fov_y_deg", "must be in (0, 180) degrees, got " + num(c.fov_y_deg));
+  if (!std::isfinite(c.aspect) || !(c.aspect >= 1e-3) || !(c.aspect <= 1e3))
+    return Status::Error("aspect", "must be in [0.001, 1000], got " + num(c.aspect));
+  if (!std::isfinite(c.near) || !(c.near > 0.0))
+    return Status::Error("near", "must be > 0, got " + num(c.near));
+  if (!std::isfinite(c.far) || !(c.far > c.near))
+    return Status::Error("far", "must be finite and > near, got " + num(c.far));
+  return Status::Ok();
+}
+
+namespace detail {
+
+WorldFrustum make_world_frustum(const Camera& c) {
+  WorldFrustum w;
+  w.eye = c.eye;
+  w.f = glm::normalize(c.dir);
+  w.r = glm::normalize(glm::cross(w.f, glm::normalize(c.up)));
+  w.u = glm::cross(w.r, w.f);
+  constexpr double kPi = 3.14159265358979323846;
+  w.tan_y = std::tan(c.fov_y_deg * kPi / 360.0);
+  w.tan_x = w.tan_y * c.aspect;
+  w.near = c.near;
+  w.far = c.far;
+  // Planes relative to the eye: n·(p - eye) + d >= 0 inside.
+  auto side = [](const Vec3& n) { return Plane{glm::normalize(n), 0.0}; };
+  w.planes[0] = side(w.tan_x * w.f + w.r);
+  w.planes[1] = side(w.tan_x * w.f - w.r);
+  w.planes[2] = side(w.tan_y * w.f + w.u);
+  w.planes[3] = side(w.tan_y * w.f - w.u);
+  w.planes[4] = Plane{w.f, -c.near};
+  w.planes[5] = Plane{-w.f, c.far};
+  return w;
+}
+
+bool WorldFrustum::may_intersect_box(const Vec3& lo, const Vec3& hi) const {
+  const Vec3 rlo = lo - eye;
+  const Vec3 rhi = hi - eye;
+  // Margin grows with the magnitudes involved so rounding never culls.
+  const double scale = 1.0 + max_abs(rlo) + max_abs(rhi) + max_abs(eye);
+  const double margin = 1e-9 * scale;
+  for (const Plane& p : planes) {
+    if (p.box_max(rlo, rhi) < -margin) return false;
+  }
+  return true;
+}
+
+LocalFrustum make_local_frustum(const WorldFrustum& wf, const Vec3& e, const Vec3& vs,
+                                double far_eff, double tol) {
+  LocalFrustum lf;
+  lf.e = e;
+  lf.near = wf.near;
+  lf.tol = tol;
+  // A world plane through the eye, n·(p - eye) >= 0, becomes (n∘vs)·(x - e) >= 0
+  // in grid units: the grid is an axis scaling of the world.
+  auto through_eye = [&](const Vec3& nw) {
+    Vec3 n = glm::normalize(nw * vs);
+    return Plane{n, -glm::dot(n, e)};
+  };
+  for (int i = 0; i < 4; ++i) lf.side[static_cast<std::size_t>(i)] = through_eye(wf.planes[static_cast<std::size_t>(i)].n);
+  lf.depth_n = wf.f * vs;
+  {
+    const double len = glm::length(lf.depth_n);
+    const Vec3 n = -lf.depth_n / len;
+    lf.side[4] = Plane{n, -glm::dot(n, e) + far_eff / len};
+  }
+  lf.verts[0] = e;
+  int k = 1;
+  for (double sx : {-1.0, 1.0}) {
+    for (double sy : {-1.0, 1.0}) {
+      const Vec3 w = far_eff * (wf.f + sx * wf.tan_x * wf.r + sy * wf.tan_y * wf.u);
+      lf.verts[static_cast<std::size_t>(k++)] = e + w / vs;
+    }
+  }
+  return lf;
+}
+
+double LocalFrustum::depth_min(const Vec3& lo) const {
+  const Vec3 a = lo - e;
+  const Vec3& n = depth_n;
+  return (n.x > 0 ? n.x * a.x : n.x * (a.x + 1.0)) + (n.y > 0 ? n.y * a.y : n.y * (a.y + 1.0)) +
+         (n.z > 0 ? n.z * a.z : n.z * (a.z + 1.0));
+}
+
+double LocalFrustum::depth_max(const Vec3& lo) const {
+  const Vec3 a = lo - e;
+  const Vec3& n = depth_n;
+  return (n.x > 0 ? n.x * (a.x + 1.0) : n.x * a.x) + (n.y > 0 ? n.y * (a.y + 1.0) : n.y * a.y) +
+         (n.z > 0 ? n.z * (a.z + 1.0) : n.z * a.z);
+}
+
+}  // namespace detail
+}  // namespace voxvis

@@ -1,0 +1,532 @@
+// scene.cpp — scene construction, conservative discretization, moves and
+// temporal bounding volumes. The per-frame traversal is in traverse.cpp.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <string>
+
+#include <glm/geometric.hpp>
+
+#include "scene_impl.h"
+
+namespace voxvis {
+
+using detail::Obj;
+using detail::VoxBox;
+
+namespace {
+
+constexpr double kUlp = std::numeric_limits<double>::epsilon();
+
+bool finite3(const Vec3& v) {
+  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+double max_abs(const Vec3& v) {
+  return std::fmax(std::fabs(v.x), std::fmax(std::fabs(v.y), std::fabs(v.z)));
+}
+std::string num(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+std::string obj_field(std::size_t i, const char* name) {
+  return "objects[" + std::to_string(i) + "]." + name;
+}
+
+/// Clamps a grid coordinate to [lo, hi] before converting it, so huge or
+/// far-away values never overflow the integer.
+int clamp_floor(double g, int lo, int hi) {
+  if (!(g >= lo)) return lo;
+  if (g >= hi) return hi;
+  return static_cast<int>(std::floor(g));
+}
+
+Status validate_desc(const SceneDesc& d, const SceneOptions& opt) {
+  if (!finite3(d.bounds_min) || !finite3(d.bounds_max))
+    return Status::Error("bounds", "must be finite numbers");
+  if (max_abs(d.bounds_min) > kMaxCoordinate || max_abs(d.bounds_max) > kMaxCoordinate)
+    return Status::Error("bounds", "magnitude exceeds " + num(kMaxCoordinate));
+  for (int a = 0; a < 3; ++a) {
+    if (!(d.bounds_min[a] < d.bounds_max[a]))
+      return Status::Error("bounds", std::string("min must be < max on every axis; axis ") +
+                                         "xyz"[a] + " has " + num(d.bounds_min[a]) +
+                                         " >= " + num(d.bounds_max[a]));
+    const double extent = d.bounds_max[a] - d.bounds_min[a];
+    if (!(extent > 64 * kUlp * std::fmax(std::fabs(d.bounds_min[a]), std::fabs(d.bounds_max[a]))))
+      return Status::Error("bounds", std::string("extent on axis ") + "xyz"[a] +
+                                         " is too small to be resolved at this offset");
+  }
+  if (d.grid) {
+    const glm::ivec3 g = *d.grid;
+    for (int a = 0; a < 3; ++a) {
+      if (g[a] < 1)
+        return Status::Error("grid", "resolution must be >= 1 on every axis, got " +
+                                         std::to_string(g[a]));
+      if (g[a] > opt.max_resolution)
+        return Status::Error("grid", "resolution " + std::to_string(g[a]) +
+                                         " exceeds the per-axis limit of " +
+                                         std::to_string(opt.max_resolution));
+    }
+    const std::int64_t n = std::int64_t{g.x} * g.y * g.z;
+    if (n > opt.max_voxels)
+      return Status::Error("grid", std::to_string(g.x) + "x" + std::to_string(g.y) + "x" +
+                                       std::to_string(g.z) + " = " + std::to_string(n) +
+                                       " voxels exceeds the limit of " +
+                                       std::to_string(opt.max_voxels));
+  }
+  if (!(opt.tbv_period >= 0.0) || !std::isfinite(opt.tbv_period))
+    return Status::Error("tbv_period", "must be finite and >= 0");
+  if (!(opt.tbv_voxels > 0.0) || !std::isfinite(opt.tbv_voxels))
+    return Status::Error("tbv_voxels", "must be finite and > 0");
+  if (!(opt.tbv_max_period > 0.0) || !std::isfinite(opt.tbv_max_period))
+    return Status::Error("tbv_max_period", "must be finite and > 0");
+
+  std::unordered_map<ObjectId, std::size_t> seen;
+  seen.reserve(d.objects.size());
+  for (std::size_t i = 0; i < d.objects.size(); ++i) {
+    const ObjectDesc& o = d.objects[i];
+    auto [it, fresh] = seen.emplace(o.id, i);
+    if (!fresh)
+      return Status::Error(obj_field(i, "id"), "duplicate id " + std::to_string(o.id) +
+                                                   " (also objects[" +
+                                                   std::to_string(it->second) + "])");
+    if (!finite3(o.center)) return Status::Error(obj_field(i, "center"), "must be finite");
+    if (max_abs(o.center) > kMaxCoordinate)
+      return Status::Error(obj_field(i, "center"), "magnitude exceeds " + num(kMaxCoordinate));
+    if (o.shape == Shape::Sphere) {
+      if (!std::isfinite(o.radius) || !(o.radius > 0.0))
+        return Status::Error(obj_field(i, "radius"), "must be > 0, got " + num(o.radius));
+      if (o.radius > kMaxCoordinate)
+        return Status::Error(obj_field(i, "radius"), "exceeds " + num(kMaxCoordinate));
+    } else {
+      if (!finite3(o.half_extent))
+        return Status::Error(obj_field(i, "max"), "box extents must be finite");
+      for (int a = 0; a < 3; ++a)
+        if (!(o.half_extent[a] >= 0.0))
+          return Status::Error(obj_field(i, "min"), "box min must be <= max on every axis");
+      if (max_abs(o.half_extent) > kMaxCoordinate)
+        return Status::Error(obj_field(i, "max"), "box extent exceeds " + num(kMaxCoordinate));
+    }
+    if (o.dynamic && (!std::isfinite(o.max_speed) || !(o.max_speed >= 0.0)))
+      return Status::Error(obj_field(i, "max_speed"),
+                           "must be finite and >= 0, got " + num(o.max_speed));
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------
+// Scratch
+
+Scratch::Scratch() : impl_(std::make_unique<Impl>()) {}
+Scratch::~Scratch() = default;
+
+void Scratch::Impl::begin(std::size_t voxels, std::size_t objects) {
+  if (stamp.size() < voxels) stamp.resize(voxels, 0);
+  if (obj_mark.size() < objects) obj_mark.resize(objects, 0);
+  // The frame number lives in the upper 30 bits of a stamp; start over
+  // before it wraps so that no stale stamp can ever match.
+  if (++frame == std::numeric_limits<std::uint32_t>::max()) {
+    std::fill(obj_mark.begin(), obj_mark.end(), 0u);
+    frame = 1;
+  }
+  if (++stamp_tag == 64) {
+    std::fill(stamp.begin(), stamp.end(), std::uint8_t{0});
+    stamp_tag = 1;
+  }
+  pvs.clear();
+  reveals.clear();
+}
+
+// ---------------------------------------------------------------------------
+// Geometry
+
+double Scene::Impl::slop(double mag) const {
+  // Generous allowance for the rounding of (p - bounds_min) / voxel_size and
+  // of the distance arithmetic; errs towards "touches" and "not opaque".
+  return 64.0 * kUlp * (mag + slop_bounds) + 1e-300;
+}
+
+VoxBox Scene::Impl::touch_range(const Vec3& lo, const Vec3& hi, double slop_w) const {
+  const Vec3 glo = to_grid(lo) - slop_w * inv_vs;
+  const Vec3 ghi = to_grid(hi) + slop_w * inv_vs;
+  VoxBox vb;
+  for (int a = 0; a < 3; ++a) {
+    // Voxel i spans [i, i+1]; it touches [glo, ghi] iff ceil(glo)-1 <= i <= floor(ghi).
+    vb.lo[a] = clamp_floor(std::ceil(glo[a]) - 1.0, 0, res[a] - 1);
+    vb.hi[a] = clamp_floor(ghi[a], -1, res[a] - 1);
+    if (ghi[a] < 0.0 || glo[a] > res[a]) {
+      vb.hi = glm::ivec3(-1);
+      vb.lo = glm::ivec3(0);
+      return vb;
+    }
+  }
+  return vb;
+}
+
+bool Scene::Impl::touches(const Obj& o, const Vec3& c, int x, int y, int z) const {
+  const double s = slop(max_abs(c) + o.radius + max_abs(o.half));
+  const Vec3 v{static_cast<double>(x), static_cast<double>(y), static_cast<double>(z)};
+  if (o.shape == Shape::Sphere) {
+    const Vec3 cg = to_grid(c);
+    const Vec3 q = glm::clamp(cg, v, v + 1.0);
+    const Vec3 dw = (q - cg) * spec.voxel_size;
+    const double rr = o.radius + s;
+    return glm::dot(dw, dw) <= rr * rr;
+  }
+  const Vec3 sg = s * inv_vs;
+  const Vec3 lo = to_grid(c - o.half) - sg;
+  const Vec3 hi = to_grid(c + o.half) + sg;
+  return v.x <= hi.x && v.x + 1.0 >= lo.x && v.y <= hi.y && v.y + 1.0 >= lo.y &&
+         v.z <= hi.z && v.z + 1.0 >= lo.z;
+}
+
+bool Scene::Impl::contains_voxel(const Obj& o, const Vec3& c, int x, int y, int z) const {
+  const double s = slop(max_abs(c) + o.radius + max_abs(o.half));
+  const Vec3 v{static_cast<double>(x), static_cast<double>(y), static_cast<double>(z)};
+  if (o.shape == Shape::Sphere) {
+    const Vec3 cg = to_grid(c);
+    const Vec3 far_d = glm::max(glm::abs(v - cg), glm::abs(v + 1.0 - cg)) * spec.voxel_size;
+    const double rr = o.radius - s;
+    return rr > 0.0 && glm::dot(far_d, far_d) <= rr * rr;
+  }
+  const Vec3 sg = s * inv_vs;
+  const Vec3 lo = to_grid(c - o.half) + sg;
+  const Vec3 hi = to_grid(c + o.half) - sg;
+  return v.x >= lo.x && v.x + 1.0 <= hi.x && v.y >= lo.y && v.y + 1.0 <= hi.y &&
+         v.z >= lo.z && v.z + 1.0 <= hi.z;
+}
+
+bool Scene::Impl::box_inside_grid(const Vec3& lo, const Vec3& hi) const {
+  const double s = slop(std::fmax(max_abs(lo), max_abs(hi)));
+  for (int a = 0; a < 3; ++a)
+    if (!(lo[a] >= spec.bounds_min[a] + s) || !(hi[a] <= spec.bounds_max[a] - s)) return false;
+  return true;
+}
+
+// ---------------------------------------------------------------------------
+// Dynamic layer
+
+void Scene::Impl::brick_add(const VoxBox& vb, std::uint32_t entry) {
+  if (vb.empty()) return;
+  const glm::ivec3 lo = vb.lo >> detail::kBrickShift;
+  const glm::ivec3 hi = vb.hi >> detail::kBrickShift;
+  for (int z = lo.z; z <= hi.z; ++z)
+    for (int y = lo.y; y <= hi.y; ++y)
+      for (int x = lo.x; x <= hi.x; ++x)
+        bricks[static_cast<std::size_t>(x + bricks_res.x * (y + std::int64_t{bricks_res.y} * z))]
+            .push_back(entry);
+}
+
+void Scene::Impl::brick_remove(const VoxBox& vb, std::uint32_t entry) {
+  if (vb.empty()) return;
+  const glm::ivec3 lo = vb.lo >> detail::kBrickShift;
+  const glm::ivec3 hi = vb.hi >> detail::kBrickShift;
+  for (int z = lo.z; z <= hi.z; ++z)
+    for (int y = lo.y; y <= hi.y; ++y)
+      for (int x = lo.x; x <= hi.x; ++x) {
+        auto& list =
+            bricks[static_cast<std::size_t>(x + bricks_res.x * (y + std::int64_t{bricks_res.y} * z))];
+        auto it = std::find(list.begin(), list.end(), entry);
+        if (it != list.end()) {
+          *it = list.back();
+          list.pop_back();
+        }
+      }
+}
+
+void Scene::Impl::list_add(std::vector<std::uint32_t>& list, std::int32_t& pos, std::uint32_t slot) {
+  if (pos >= 0) return;
+  pos = static_cast<std::int32_t>(list.size());
+  list.push_back(slot);
+}
+
+void Scene::Impl::list_remove(std::vector<std::uint32_t>& list, std::int32_t& pos, bool tbv) {
+  if (pos < 0) return;
+  const std::uint32_t moved = list.back();
+  list[static_cast<std::size_t>(pos)] = moved;
+  (tbv ? objs[moved].tbv_outside_pos : objs[moved].outside_pos) = pos;
+  list.pop_back();
+  pos = -1;
+}
+
+void Scene::Impl::discretize(std::uint32_t slot) {
+  Obj& o = objs[slot];
+  o.disc_center = o.center;
+  const double s = slop(max_abs(o.center) + o.radius + max_abs(o.half));
+  const VoxBox vb = touch_range(o.box_lo(), o.box_hi(), s);
+  brick_add(vb, slot << 1);
+  for (int z = vb.lo.z; z <= vb.hi.z; ++z)
+    for (int y = vb.lo.y; y <= vb.hi.y; ++y)
+      for (int x = vb.lo.x; x <= vb.hi.x; ++x)
+        if (contains_voxel(o, o.center, x, y, z)) ++dyn_opaque[static_cast<std::size_t>(index(x, y, z))];
+  if (!box_inside_grid(o.box_lo(), o.box_hi())) list_add(outside_objs, o.outside_pos, slot);
+  ++pending.objects_discretized;
+}
+
+void Scene::Impl::undiscretize(std::uint32_t slot) {
+  Obj& o = objs[slot];
+  const Vec3 c = o.disc_center;
+  const double s = slop(max_abs(c) + o.radius + max_abs(o.half));
+  const VoxBox vb = touch_range(c - o.half, c + o.half, s);
+  brick_remove(vb, slot << 1);
+  // The same predicate at the same centre finds exactly the voxels counted.
+  for (int z = vb.lo.z; z <= vb.hi.z; ++z)
+    for (int y = vb.lo.y; y <= vb.hi.y; ++y)
+      for (int x = vb.lo.x; x <= vb.hi.x; ++x)
+        if (contains_voxel(o, c, x, y, z)) --dyn_opaque[static_cast<std::size_t>(index(x, y, z))];
+  list_remove(outside_objs, o.outside_pos, false);
+}
+
+double Scene::Impl::initial_period(const Obj& o) const {
+  if (options.tbv_period > 0.0) return options.tbv_period;
+  if (!(o.max_speed > 0.0)) return options.tbv_max_period;
+  const double vmin = std::fmin(spec.voxel_size.x, std::fmin(spec.voxel_size.y, spec.voxel_size.z));
+  return std::clamp(options.tbv_voxels * vmin / o.max_speed, 1e-3, options.tbv_max_period);
+}
+
+void Scene::Impl::make_tbv(std::uint32_t slot, double now) {
+  Obj& o = objs[slot];
+  // Every centre reachable before expiry is within max_speed * period of the
+  // current one, so the object's box grown by that much bounds it (Sudarsky &
+  // Gotsman's TBV, as a box since our objects are boxes and spheres).
+  const double grow = o.max_speed * o.tbv_period;
+  o.tbv_lo = o.center - o.half - grow;
+  o.tbv_hi = o.center + o.half + grow;
+  o.tbv_expiry = o.max_speed > 0.0 ? now + o.tbv_period : std::numeric_limits<double>::infinity();
+  o.under_tbv = true;
+  ++o.tbv_gen;
+  if (std::isfinite(o.tbv_expiry)) expiry.push({o.tbv_expiry, slot, o.tbv_gen});
+  const double s = slop(std::fmax(max_abs(o.tbv_lo), max_abs(o.tbv_hi)));
+  o.tbv_voxels = touch_range(o.tbv_lo, o.tbv_hi, s);
+  brick_add(o.tbv_voxels, (slot << 1) | 1u);
+  if (!box_inside_grid(o.tbv_lo, o.tbv_hi)) list_add(outside_tbvs, o.tbv_outside_pos, slot);
+  ++tbv_count;
+}
+
+void Scene::Impl::drop_tbv(std::uint32_t slot) {
+  Obj& o = objs[slot];
+  brick_remove(o.tbv_voxels, (slot << 1) | 1u);
+  list_remove(outside_tbvs, o.tbv_outside_pos, true);
+  o.under_tbv = false;
+  ++o.tbv_gen;  // Invalidates its expiry entry.
+  --tbv_count;
+}
+
+void Scene::Impl::reveal(std::uint32_t slot) {
+  Obj& o = objs[slot];
+  drop_tbv(slot);
+  o.tbv_period = initial_period(o);
+  discretize(slot);
+  if (!o.pending_unclaimed) {
+    o.pending_unclaimed = true;
+    unclaimed.push_back(slot);
+  }
+}
+
+// ---------------------------------------------------------------------------
+// Scene
+
+Scene::Scene(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+Scene::~Scene() = default;
+
+glm::ivec3 Scene::auto_resolution(const SceneDesc& desc, const SceneOptions& opt) {
+  const Vec3 ext = desc.bounds_max - desc.bounds_min;
+  const double target = static_cast<double>(std::max<std::int64_t>(1, opt.auto_voxels));
+  double h = std::cbrt(ext.x * ext.y * ext.z / target);
+  glm::ivec3 r{1};
+  for (int iter = 0; iter < 200; ++iter) {
+    for (int a = 0; a < 3; ++a)
+      r[a] = static_cast<int>(std::clamp(std::round(ext[a] / h), 1.0,
+                                         static_cast<double>(opt.max_resolution)));
+    const double n = double(r.x) * r.y * r.z;
+    if (n <= 2.0 * target || (r.x == 1 && r.y == 1 && r.z == 1)) break;
+    h *= 1.25;  // Flat bounds: the cube-root guess overshoots on the long axes.
+  }
+  return r;
+}
+
+Status Scene::create(const SceneDesc& desc, const SceneOptions& options, std::unique_ptr<Scene>* out) {
+  if (Status st = validate_desc(desc, options); !st) return st;
+  auto impl = std::make_unique<Impl>();
+  Impl& s = *impl;
+  s.options = options;
+  s.res = desc.grid ? *desc.grid : auto_resolution(desc, options);
+  if (!desc.grid && std::int64_t{s.res.x} * s.res.y * s.res.z > options.max_voxels)
+    return Status::Error("grid", "automatic resolution exceeds max_voxels");
+  s.spec.res = s.res;
+  s.spec.bounds_min = desc.bounds_min;
+  s.spec.bounds_max = desc.bounds_max;
+  s.spec.voxel_size = (desc.bounds_max - desc.bounds_min) / Vec3(s.res);
+  s.inv_vs = 1.0 / s.spec.voxel_size;
+  s.slop_bounds = std::fmax(max_abs(desc.bounds_min), max_abs(desc.bounds_max));
+  const std::size_t nvox = static_cast<std::size_t>(s.spec.voxel_count());
+
+  s.objs.reserve(desc.objects.size());
+  s.slot_of.reserve(desc.objects.size());
+  for (const ObjectDesc& d : desc.objects) {
+    Obj o;
+    o.id = d.id;
+    o.shape = d.shape;
+    o.dynamic = d.dynamic;
+    o.max_speed = d.dynamic ? d.max_speed : 0.0;
+    o.center = d.center;
+    o.radius = d.shape == Shape::Sphere ? d.radius : 0.0;
+    o.half = d.shape == Shape::Sphere ? Vec3(d.radius) : d.half_extent;
+    o.last_move_t = std::numeric_limits<double>::quiet_NaN();
+    s.slot_of.emplace(o.id, static_cast<std::uint32_t>(s.objs.size()));
+    s.objs.push_back(o);
+    if (o.dynamic) ++s.dynamic_count;
+  }
+
+  // Static layer: count, then fill (CSR), and the opaque bits.
+  s.static_opaque.assign((nvox + 63) / 64, 0);
+  s.static_offsets.assign(nvox + 1, 0);
+  std::uint64_t total = 0;
+  for (int pass = 0; pass < 2; ++pass) {
+    for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
+      const Obj& o = s.objs[slot];
+      if (o.dynamic) continue;
+      const double sl = s.slop(max_abs(o.center) + o.radius + max_abs(o.half));
+      const VoxBox vb = s.touch_range(o.box_lo(), o.box_hi(), sl);
+      for (int z = vb.lo.z; z <= vb.hi.z; ++z)
+        for (int y = vb.lo.y; y <= vb.hi.y; ++y)
+          for (int x = vb.lo.x; x <= vb.hi.x; ++x) {
+            if (!s.touches(o, o.center, x, y, z)) continue;
+            const auto i = static_cast<std::size_t>(s.index(x, y, z));
+            if (pass == 0) {
+              ++s.static_offsets[i + 1];
+              ++total;
+              if (s.contains_voxel(o, o.center, x, y, z)) s.static_opaque[i >> 6] |= 1ull << (i & 63);
+            } else {
+              s.static_ids[s.static_offsets[i]++] = slot;
+            }
+          }
+      if (pass == 0 && !s.box_inside_grid(o.box_lo(), o.box_hi()))
+        s.list_add(s.outside_objs, s.objs[slot].outside_pos, slot);
+    }
+    if (pass == 0) {
+      if (total > std::numeric_limits<std::uint32_t>::max())
+        return Status::Error("grid", "static objects touch more than 2^32 voxels; choose a coarser grid");
+      for (std::size_t i = 0; i < nvox; ++i) s.static_offsets[i + 1] += s.static_offsets[i];
+      s.static_ids.resize(static_cast<std::size_t>(total));
+    } else {
+      // The fill advanced each start to the next voxel's start; shift back.
+      for (std::size_t i = nvox; i > 0; --i) s.static_offsets[i] = s.static_offsets[i - 1];
+      s.static_offsets[0] = 0;
+    }
+  }
+
+  if (s.dynamic_count > 0) {
+    s.dyn_opaque.assign(nvox, 0);
+    s.bricks_res = (s.res + ((1 << detail::kBrickShift) - 1)) >> detail::kBrickShift;
+    s.bricks.resize(static_cast<std::size_t>(std::int64_t{s.bricks_res.x} * s.bricks_res.y * s.bricks_res.z));
+    // Until a viewer has looked, every object may be visible: discretize all
+    // dynamic objects now; those no viewer claims get TBVs after a frame.
+    for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
+      Obj& o = s.objs[slot];
+      if (!o.dynamic) continue;
+      o.tbv_period = s.initial_period(o);
+      s.discretize(slot);
+      o.pending_unclaimed = true;
+      s.unclaimed.push_back(slot);
+    }
+    s.pending = FrameStats{};
+  }
+  out->reset(new Scene(std::move(impl)));
+  return Status::Ok();
+}
+
+const GridSpec& Scene::grid() const { return impl_->spec; }
+std::size_t Scene::object_count() const { return impl_->objs.size(); }
+std::size_t Scene::dynamic_count() const { return impl_->dynamic_count; }
+double Scene::time() const { return impl_->time; }
+
+ViewerId Scene::add_viewer() {
+  const ViewerId id = impl_->next_viewer++;
+  impl_->viewers.emplace(id, detail::ViewerState{});
+  return id;
+}
+
+void Scene::remove_viewer(ViewerId viewer) {
+  Impl& s = *impl_;
+  auto it = s.viewers.find(viewer);
+  if (it == s.viewers.end()) return;
+  for (std::uint32_t slot : it->second.last_pvs) {
+    Obj& o = s.objs[slot];
+    if (!o.dynamic) continue;
+    if (--o.claims == 0 && !o.pending_unclaimed) {
+      o.pending_unclaimed = true;
+      s.unclaimed.push_back(slot);
+    }
+  }
+  s.viewers.erase(it);
+}
+
+Status Scene::apply_moves(double t, std::span<const Move> moves, MoveReport* report) {
+  Impl& s = *impl_;
+  if (!std::isfinite(t)) return Status::Error("t", "must be finite");
+  if (s.time_set && t < s.time)
+    return Status::Error("t", "time goes backwards: " + num(t) + " < " + num(s.time));
+  for (std::size_t i = 0; i < moves.size(); ++i) {
+    const Move& m = moves[i];
+    const std::string f = "moves[" + std::to_string(i) + "]";
+    auto it = s.slot_of.find(m.id);
+    if (it == s.slot_of.end()) return Status::Error(f + ".id", "unknown object id " + std::to_string(m.id));
+    if (!s.objs[it->second].dynamic)
+      return Status::Error(f + ".id", "object " + std::to_string(m.id) + " is static and cannot move");
+    if (!finite3(m.center)) return Status::Error(f + ".center", "must be finite");
+    if (max_abs(m.center) > kMaxCoordinate)
+      return Status::Error(f + ".center", "magnitude exceeds " + num(kMaxCoordinate));
+  }
+  s.time = t;
+  s.time_set = true;
+  if (report) *report = MoveReport{};
+  for (const Move& m : moves) {
+    const std::uint32_t slot = s.slot_of.find(m.id)->second;
+    Obj& o = s.objs[slot];
+    const double dist = glm::length(m.center - o.center);
+    bool too_fast = false;
+    if (std::isfinite(o.last_move_t)) {
+      const double allowed = o.max_speed * (t - o.last_move_t);
+      too_fast = dist > allowed * (1.0 + 1e-9) + s.slop(max_abs(m.center));
+    }
+    o.last_move_t = t;
+    if (too_fast) {
+      ++s.pending.speed_violations;
+      if (report) report->too_fast.push_back(m.id);
+    }
+    if (o.under_tbv) {
+      const double sl = s.slop(max_abs(m.center));
+      const bool inside = glm::all(glm::greaterThanEqual(m.center - o.half, o.tbv_lo + sl)) &&
+                          glm::all(glm::lessThanEqual(m.center + o.half, o.tbv_hi - sl));
+      o.center = m.center;
+      // A move the TBV does not bound voids it: the object is revealed.
+      if (too_fast || !inside) {
+        s.reveal(slot);
+        ++s.pending.tbvs_revealed;
+        s.pending_wake.push_back(slot);
+      }
+    } else if (m.center != o.disc_center) {
+      s.undiscretize(slot);
+      o.center = m.center;
+      s.discretize(slot);
+    } else {
+      o.center = m.center;
+    }
+    if (report) ++report->applied;
+  }
+  return Status::Ok();
+}
+
+std::vector<ObjectId> Scene::wake_set() const {
+  std::vector<ObjectId> ids;
+  for (const Obj& o : impl_->objs)
+    if (o.dynamic && !o.under_tbv) ids.push_back(o.id);
+  std::sort(ids.begin(), ids.end());
+  return ids;
+}
+
+}  // namespace voxvis

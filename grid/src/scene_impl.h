@@ -1,0 +1,170 @@
+// scene_impl.h — the shared scene grid and per-thread scratch.
+//
+// Layout (flat arrays indexed by voxel, x fastest):
+//  * static_opaque_  1 bit a voxel: lies wholly inside a static object.
+//  * static_offsets_/static_ids_  CSR lists of the static objects touching
+//    each voxel; built once (paper 4.5).
+//  * dyn_opaque_     per voxel, how many discretized dynamic objects contain
+//    it wholly (allocated only when the scene has dynamic objects).
+//  * bricks_         per 4x4x4 brick, the dynamic objects and TBVs touching
+//    it; an entry is (slot << 1 | is_tbv). The exact voxel test happens when
+//    the traversal reaches a voxel, so a move or a TBV costs the bricks it
+//    covers, not the voxels.
+// Objects and TBVs beyond the grid box are also kept on `outside_` lists and
+// tested against the frustum each frame, since no voxel stands for them.
+#pragma once
+
+#include <cstdint>
+#include <queue>
+#include <unordered_map>
+#include <vector>
+
+#include "voxvis/scene.h"
+
+namespace voxvis {
+
+namespace detail {
+
+inline constexpr int kBrickShift = 2;  ///< Bricks are 4x4x4 voxels.
+
+/// Integer voxel box [lo, hi] (inclusive), grid indices.
+struct VoxBox {
+  glm::ivec3 lo{0}, hi{-1};
+  bool empty() const { return hi.x < lo.x || hi.y < lo.y || hi.z < lo.z; }
+};
+
+struct Obj {
+  ObjectId id = 0;
+  Shape shape = Shape::Sphere;
+  bool dynamic = false;
+  double max_speed = 0.0;    ///< World units / s.
+  Vec3 center{0.0};          ///< Current centre, world units.
+  double radius = 0.0;       ///< Sphere radius, world units.
+  Vec3 half{0.0};            ///< Half extents of the bounding box, world units.
+  double last_move_t = 0.0;  ///< Time of `center`, seconds.
+
+  // Grid state of a dynamic object.
+  bool under_tbv = false;
+  std::uint32_t claims = 0;   ///< Viewers whose last PVS holds it.
+  bool pending_unclaimed = false;
+  Vec3 disc_center{0.0};      ///< Centre it is discretized at (when !under_tbv).
+  std::int32_t outside_pos = -1;  ///< Index in outside_objs_, or -1.
+
+  // TBV (when under_tbv): a box holding every position reachable before expiry.
+  Vec3 tbv_lo{0.0}, tbv_hi{0.0};  ///< World units.
+  double tbv_expiry = 0.0;        ///< Seconds.
+  double tbv_period = 0.0;        ///< Seconds, the period of the current/next TBV.
+  std::uint32_t tbv_gen = 0;      ///< Tells live heap entries from stale ones.
+  std::int32_t tbv_outside_pos = -1;
+  VoxBox tbv_voxels;              ///< Voxels the TBV touches, clipped to the grid.
+
+  Vec3 box_lo() const { return center - half; }
+  Vec3 box_hi() const { return center + half; }
+};
+
+struct ExpiryEntry {
+  double expiry;
+  std::uint32_t slot;
+  std::uint32_t gen;
+  bool operator>(const ExpiryEntry& o) const { return expiry > o.expiry; }
+};
+
+struct ViewerState {
+  std::vector<std::uint32_t> last_pvs;  ///< Slots, ascending.
+};
+
+}  // namespace detail
+
+struct Scratch::Impl {
+  /// Per voxel: (stamp_tag << 2) | status in the current frame. A voxel
+  /// with another tag was not reached this frame, which the traversal reads
+  /// as culled. Tags cycle through 1..63; the array is cleared when they
+  /// wrap, so a stale tag can never match.
+  std::vector<std::uint8_t> stamp;
+  std::uint32_t stamp_tag = 0;
+  /// Per object slot: frame in which it was put in the PVS.
+  std::vector<std::uint32_t> obj_mark;
+  std::uint32_t frame = 0;
+
+  // Reused buffers.
+  std::vector<std::uint32_t> pvs;
+  std::vector<std::uint32_t> reveals;
+
+  /// Starts a frame for a scene of `voxels` voxels and `objects` slots.
+  void begin(std::size_t voxels, std::size_t objects);
+};
+
+struct Scene::Impl {
+  GridSpec spec;
+  SceneOptions options;
+  glm::ivec3 res{1};
+  Vec3 inv_vs{1.0};
+  double slop_bounds = 0.0;  ///< Rounding allowance of grid mapping, world units.
+
+  std::vector<detail::Obj> objs;
+  std::unordered_map<ObjectId, std::uint32_t> slot_of;
+  std::size_t dynamic_count = 0;
+
+  // Static layer.
+  std::vector<std::uint64_t> static_opaque;
+  std::vector<std::uint32_t> static_offsets;
+  std::vector<std::uint32_t> static_ids;  ///< Slots.
+
+  // Dynamic layer.
+  std::vector<std::uint32_t> dyn_opaque;
+  glm::ivec3 bricks_res{0};
+  std::vector<std::vector<std::uint32_t>> bricks;
+
+  // Beyond the grid.
+  std::vector<std::uint32_t> outside_objs;
+  std::vector<std::uint32_t> outside_tbvs;
+
+  // TBVs.
+  std::priority_queue<detail::ExpiryEntry, std::vector<detail::ExpiryEntry>,
+                      std::greater<detail::ExpiryEntry>>
+      expiry;
+  std::uint32_t tbv_count = 0;
+  std::vector<std::uint32_t> unclaimed;  ///< Slots that may need a TBV.
+
+  // Viewers.
+  std::unordered_map<ViewerId, detail::ViewerState> viewers;
+  ViewerId next_viewer = 1;
+
+  double time = 0.0;
+  bool time_set = false;
+
+  // Counters gathered between frames (moves), reported with the next frame.
+  FrameStats pending;
+  std::vector<std::uint32_t> pending_wake;
+
+  // --- geometry -----------------------------------------------------------
+  std::int64_t index(int x, int y, int z) const {
+    return x + std::int64_t{res.x} * (y + std::int64_t{res.y} * z);
+  }
+  bool static_opaque_at(std::int64_t i) const {
+    return (static_opaque[static_cast<std::size_t>(i >> 6)] >> (i & 63)) & 1u;
+  }
+  Vec3 to_grid(const Vec3& p) const { return (p - spec.bounds_min) * inv_vs; }
+  /// Rounding allowance for an object near `mag` world units, world units.
+  double slop(double mag) const;
+  /// Voxels the box [lo, hi] (world) may touch, clipped to the grid.
+  detail::VoxBox touch_range(const Vec3& lo, const Vec3& hi, double slop_w) const;
+  bool touches(const detail::Obj& o, const Vec3& c, int x, int y, int z) const;
+  bool contains_voxel(const detail::Obj& o, const Vec3& c, int x, int y, int z) const;
+  bool box_inside_grid(const Vec3& lo, const Vec3& hi) const;
+
+  // --- dynamic state ------------------------------------------------------
+  void discretize(std::uint32_t slot);
+  void undiscretize(std::uint32_t slot);
+  void brick_add(const detail::VoxBox& vb, std::uint32_t entry);
+  void brick_remove(const detail::VoxBox& vb, std::uint32_t entry);
+  void make_tbv(std::uint32_t slot, double now);
+  void drop_tbv(std::uint32_t slot);
+  void reveal(std::uint32_t slot);
+  void list_add(std::vector<std::uint32_t>& list, std::int32_t& pos, std::uint32_t slot);
+  void list_remove(std::vector<std::uint32_t>& list, std::int32_t& pos, bool tbv);
+
+  double initial_period(const detail::Obj& o) const;
+};
+
+}  // namespace voxvis

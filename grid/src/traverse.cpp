@@ -1,0 +1,700 @@
+// traverse.cpp — one frame: TBV expiry, the chess-metric front-to-back
+// traversal with shell-by-shell occlusion, and the PVS bookkeeping.
+//
+// Occlusion (paper 5.3, done without cap polygons). Let C_k be the cube of
+// voxels at chess distance <= k from the eye's voxel E; the eye is inside it.
+// A segment from the eye to a point p of a voxel v in shell k+1 leaves C_k
+// once, through a point q on a face of C_k, and q lies in a voxel u of shell
+// k. If u is opaque (wholly inside an object beyond the near plane) q is an
+// object point before p; if u is occluded, q is hidden and so is p. The q's of
+// all points of v lie in the central projection of v onto the faces of C_k
+// that v is beyond, a convex region bounded by the projections of v's
+// corners. So v is occluded when every shell-k voxel that region meets is
+// opaque or occluded. Occluder fusion is implicit: any mix of opaque and
+// occluded voxels hides what lies behind it.
+//
+// Only segments inside the view pyramid matter: a shell-k voxel the pyramid
+// misses cannot hold any such q, so it counts as blocking. The traversal
+// therefore never computes voxels outside the pyramid, and a voxel it did not
+// reach in shell k (outside the pyramid, or culled because no live voxel of
+// shell k-1 was near it) reads as blocking. Voxels beyond the grid are empty
+// space: they never block.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include <glm/geometric.hpp>
+
+#include "frustum.h"
+#include "scene_impl.h"
+
+namespace voxvis {
+
+using detail::LocalFrustum;
+using detail::Obj;
+using detail::WorldFrustum;
+
+namespace {
+
+constexpr std::uint32_t kLive = 1;
+constexpr std::uint32_t kBlocked = 2;
+constexpr double kUlp = std::numeric_limits<double>::epsilon();
+
+/// Inclusive box of local voxel coordinates.
+struct IBox {
+  std::int64_t lo[3];
+  std::int64_t hi[3];
+};
+
+/// Half-open int64 range helper.
+struct Range {
+  std::int64_t lo = 0, hi = -1;
+  bool empty() const { return hi < lo; }
+};
+
+/// Where the segments to a face's voxels leave C_j, tabulated per row and
+/// column: for a voxel (b, d) of the face that lies within C_j's slabs on b
+/// and d, the exit voxels of shell j are [b_lo, b_hi] x [d_lo, d_hi] on the
+/// face of C_j at `ua` on the face's axis. Empty ranges: prove nothing.
+struct ExitTable {
+  std::int64_t j = 0;   ///< Shell the exits are on.
+  std::int64_t ua = 0;  ///< Local coordinate of C_j's face layer on the face axis.
+  std::int64_t b0 = 0, d0 = 0;
+  std::vector<std::int64_t> b, d;  ///< Pairs (lo, hi) per column / row.
+  bool covers(std::int64_t vb, std::int64_t vd) const {
+    return vb >= -j && vb <= j && vd >= -j && vd <= j;
+  }
+};
+
+double max_abs(const Vec3& v) {
+  return std::fmax(std::fabs(v.x), std::fmax(std::fabs(v.y), std::fabs(v.z)));
+}
+
+/// Beyond 2^40 voxels from the grid, shell arithmetic in doubles would lose
+/// the precision the conservative tests need.
+bool eye_too_far(const Vec3& eye_grid) { return max_abs(eye_grid) > 0x1p40; }
+
+/// Tests whether any part of the box [lo, hi] beyond the grid box may lie in
+/// the frustum. Parts inside the grid are the voxels' business.
+bool outside_part_visible(const WorldFrustum& wf, const GridSpec& g, Vec3 lo, Vec3 hi) {
+  for (int a = 0; a < 3; ++a) {
+    if (lo[a] < g.bounds_min[a]) {
+      Vec3 h = hi;
+      h[a] = std::fmin(hi[a], g.bounds_min[a]);
+      if (wf.may_intersect_box(lo, h)) return true;
+    }
+    if (hi[a] > g.bounds_max[a]) {
+      Vec3 l = lo;
+      l[a] = std::fmax(lo[a], g.bounds_max[a]);
+      if (wf.may_intersect_box(l, hi)) return true;
+    }
+  }
+  return false;
+}
+
+class Traversal {
+ public:
+  Traversal(Scene::Impl& s, Scratch::Impl& w, const WorldFrustum& wf, FrameStats& st,
+            std::vector<std::uint32_t>& wake)
+      : s_(s), w_(w), wf_(wf), st_(st), wake_(wake), tag_(static_cast<std::uint32_t>(w.stamp_tag << 2)) {}
+
+  /// Runs the traversal; adds PVS slots to w.pvs and reveals TBVs it reaches.
+  void run();
+
+ private:
+  void add(std::uint32_t slot) {
+    std::uint32_t& mark = w_.obj_mark[slot];
+    if (mark != w_.frame) {
+      mark = w_.frame;
+      w_.pvs.push_back(slot);
+    }
+  }
+  bool in_grid(const std::int64_t v[3]) const {
+    return v[0] >= glo_[0] && v[0] <= ghi_[0] && v[1] >= glo_[1] && v[1] <= ghi_[1] &&
+           v[2] >= glo_[2] && v[2] <= ghi_[2];
+  }
+  std::int64_t gindex(const std::int64_t v[3]) const {
+    return (E_[0] + v[0]) + stride_[1] * (E_[1] + v[1]) + stride_[2] * (E_[2] + v[2]);
+  }
+  /// Status of a voxel of the previous shell: true when it blocks.
+  bool blocks(const std::int64_t u[3]) const {
+    if (!in_grid(u)) return false;  // Empty space beyond the grid.
+    const std::uint8_t st = w_.stamp[static_cast<std::size_t>(gindex(u))];
+    return (st & ~3u) != tag_ || (st & 3u) == kBlocked;
+  }
+  Range required(int b, std::int64_t vb, double t0, double t1, std::int64_t k) const;
+  bool occluded_at(const std::int64_t v[3], std::int64_t j) const;
+  Range frustum_rect_axis(int a, std::int64_t la, int b, bool* any) const;
+  Range row_in_pyramid(int a, std::int64_t la, int b, int d, std::int64_t vd, std::int64_t b0,
+                       std::int64_t b1) const;
+  void fill_table(ExitTable& t, int face, std::int64_t la, std::int64_t j, const Range& rb,
+                  const Range& rd) const;
+  bool table_occluded(const ExitTable& t, const std::int64_t v[3], int a, int b, int d) const;
+  bool occluded(const std::int64_t v[3], std::int64_t m, int a, int b, int d) const;
+  void visit(const std::int64_t v[3], std::int64_t m, int face, int b, int d);
+  void collect(std::int64_t idx, const std::int64_t v[3], std::int64_t m);
+  void reveal_in_frame(std::uint32_t slot, std::int64_t m);
+  std::int64_t chess_from_eye(const Obj& o) const;
+
+  Scene::Impl& s_;
+  Scratch::Impl& w_;
+  const WorldFrustum& wf_;
+  FrameStats& st_;
+  std::vector<std::uint32_t>& wake_;
+  const std::uint32_t tag_;
+
+  LocalFrustum lf_;
+  std::int64_t E_[3]{};
+  std::int64_t glo_[3]{}, ghi_[3]{};
+  std::int64_t stride_[3]{1, 0, 0};
+  bool eye_inside_ = false;
+  double tol_ = 0.0;        ///< Local grid units.
+  double depth_tol_ = 0.0;  ///< World units.
+  bool has_dyn_ = false;
+  ExitTable prev_, half_;  ///< Exits on shell m-1 and on shell m/2.
+  IBox face_live_[6]{};
+  bool face_has_live_[6]{};
+};
+
+Range Traversal::required(int b, std::int64_t vb, double t0, double t1, std::int64_t k) const {
+  // Exit points q_b = e_b + (p_b - e_b) * t for p_b in {vb, vb+1}, t in {t0, t1}.
+  const double eb = lf_.e[b];
+  const double p0 = static_cast<double>(vb) - eb;
+  const double p1 = p0 + 1.0;
+  const double q[4] = {eb + p0 * t0, eb + p1 * t0, eb + p0 * t1, eb + p1 * t1};
+  const double lo = std::fmin(std::fmin(q[0], q[1]), std::fmin(q[2], q[3]));
+  const double hi = std::fmax(std::fmax(q[0], q[1]), std::fmax(q[2], q[3]));
+  const double kd = static_cast<double>(k);
+  Range r;
+  if (hi < -kd - tol_ || lo > kd + 1.0 + tol_) return r;  // Leaves through another face.
+  r.lo = std::max(-k, static_cast<std::int64_t>(std::floor(lo - tol_)));
+  r.hi = std::min(k, static_cast<std::int64_t>(std::floor(hi + tol_)));
+  if (eye_inside_) {
+    // Eye and v are in the grid box, so is the segment: clamp to the grid.
+    r.lo = std::max(r.lo, glo_[b]);
+    r.hi = std::min(r.hi, ghi_[b]);
+  }
+  return r;
+}
+
+bool Traversal::occluded_at(const std::int64_t v[3], std::int64_t j) const {
+  // Segments from the eye to v leave C_j through the faces of C_j that v lies
+  // wholly beyond; j may be any shell before v's.
+  bool any = false;
+  for (int a = 0; a < 3; ++a) {
+    std::int64_t ua;
+    double c;
+    if (v[a] >= j + 1) {
+      ua = j;
+      c = static_cast<double>(j + 1);
+    } else if (v[a] <= -(j + 1)) {
+      ua = -j;
+      c = static_cast<double>(-j);
+    } else {
+      continue;
+    }
+    const double ea = lf_.e[a];
+    const double va = static_cast<double>(v[a]);
+    const double t0 = (c - ea) / (va - ea);
+    const double t1 = (c - ea) / (va + 1.0 - ea);
+    const int b = (a + 1) % 3, d = (a + 2) % 3;
+    const Range rb = required(b, v[b], t0, t1, j);
+    const Range rd = required(d, v[d], t0, t1, j);
+    if (rb.empty() || rd.empty()) continue;
+    std::int64_t u[3];
+    u[a] = ua;
+    for (u[d] = rd.lo; u[d] <= rd.hi; ++u[d])
+      for (u[b] = rb.lo; u[b] <= rb.hi; ++u[b]) {
+        if (!blocks(u)) return false;
+        any = true;
+      }
+  }
+  return any;  // No exit voxel found at all: cannot prove anything.
+}
+
+Range Traversal::frustum_rect_axis(int a, std::int64_t la, int b, bool* any) const {
+  // Bounding range on axis b of the pyramid cut by the slab [la, la+1] on axis a.
+  const double s0 = static_cast<double>(la), s1 = s0 + 1.0;
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  auto take = [&](const Vec3& p) {
+    lo = std::fmin(lo, p[b]);
+    hi = std::fmax(hi, p[b]);
+  };
+  const auto& V = lf_.verts;
+  for (const Vec3& p : V)
+    if (p[a] >= s0 - tol_ && p[a] <= s1 + tol_) take(p);
+  static constexpr int kEdges[8][2] = {{0, 1}, {0, 2}, {0, 3}, {0, 4}, {1, 2}, {2, 4}, {4, 3}, {3, 1}};
+  for (const auto& ed : kEdges) {
+    const Vec3& p = V[static_cast<std::size_t>(ed[0])];
+    const Vec3& q = V[static_cast<std::size_t>(ed[1])];
+    for (double c : {s0, s1}) {
+      if ((p[a] - c) * (q[a] - c) <= 0.0 && p[a] != q[a]) {
+        const double t = (c - p[a]) / (q[a] - p[a]);
+        take(p + (q - p) * t);
+      }
+    }
+  }
+  Range r;
+  *any = lo <= hi;
+  if (!*any) return r;
+  const double clampv = 9e15;  // Far beyond any grid; keeps the casts defined.
+  r.lo = static_cast<std::int64_t>(std::floor(std::fmax(lo - tol_, -clampv)));
+  r.hi = static_cast<std::int64_t>(std::floor(std::fmin(hi + tol_, clampv)));
+  return r;
+}
+
+Range Traversal::row_in_pyramid(int a, std::int64_t la, int b, int d, std::int64_t vd,
+                                std::int64_t b0, std::int64_t b1) const {
+  // The voxels (la, b, vd) the pyramid may meet form an interval in b: each
+  // plane's largest value over a voxel is linear in b. Widened by one voxel
+  // on each side so rounding never drops one; a voxel it keeps in error is
+  // only computed, which is conservative.
+  double lo = static_cast<double>(b0), hi = static_cast<double>(b1);
+  const double fa = static_cast<double>(la), fd = static_cast<double>(vd);
+  for (const detail::Plane& p : lf_.side) {
+    const double na = p.n[a], nb = p.n[b], nd = p.n[d];
+    const double c = p.d + (na > 0 ? na * (fa + 1.0) : na * fa) + (nd > 0 ? nd * (fd + 1.0) : nd * fd) +
+                     (nb > 0 ? nb : 0.0);
+    const double need = -lf_.tol - c;  // nb * b >= need
+    if (nb > 0.0) {
+      lo = std::fmax(lo, std::ceil(need / nb) - 1.0);
+    } else if (nb < 0.0) {
+      hi = std::fmin(hi, std::floor(need / nb) + 1.0);
+    } else if (need > 0.0) {
+      return Range{};
+    }
+    if (!(lo <= hi)) return Range{};
+  }
+  return Range{static_cast<std::int64_t>(lo), static_cast<std::int64_t>(hi)};
+}
+
+std::int64_t Traversal::chess_from_eye(const Obj& o) const {
+  const double sl = s_.slop(max_abs(o.center) + o.radius + max_abs(o.half));
+  const detail::VoxBox vb = s_.touch_range(o.box_lo(), o.box_hi(), sl);
+  if (vb.empty()) return std::numeric_limits<std::int64_t>::max();
+  std::int64_t dist = 0;
+  for (int a = 0; a < 3; ++a) {
+    const std::int64_t lo = vb.lo[a] - E_[a], hi = vb.hi[a] - E_[a];
+    const std::int64_t da = lo > 0 ? lo : (hi < 0 ? -hi : 0);
+    dist = std::max(dist, da);
+  }
+  return dist;
+}
+
+void Traversal::reveal_in_frame(std::uint32_t slot, std::int64_t m) {
+  s_.reveal(slot);
+  ++st_.tbvs_revealed;
+  wake_.push_back(slot);
+  // Voxels of shells already done will not be visited again: if the object
+  // reaches into them, it may be visible there, so it goes into the PVS.
+  if (chess_from_eye(s_.objs[slot]) <= m) add(slot);
+}
+
+void Traversal::collect(std::int64_t idx, const std::int64_t v[3], std::int64_t m) {
+  const auto i = static_cast<std::size_t>(idx);
+  for (std::uint32_t j = s_.static_offsets[i]; j < s_.static_offsets[i + 1]; ++j) add(s_.static_ids[j]);
+  if (!has_dyn_) return;
+  const int gx = static_cast<int>(E_[0] + v[0]);
+  const int gy = static_cast<int>(E_[1] + v[1]);
+  const int gz = static_cast<int>(E_[2] + v[2]);
+  const auto& list = s_.bricks[static_cast<std::size_t>(
+      (gx >> detail::kBrickShift) +
+      s_.bricks_res.x * ((gy >> detail::kBrickShift) +
+                         std::int64_t{s_.bricks_res.y} * (gz >> detail::kBrickShift)))];
+  if (list.empty()) return;
+  std::size_t first_reveal = w_.reveals.size();
+  for (std::uint32_t entry : list) {
+    const std::uint32_t slot = entry >> 1;
+    const Obj& o = s_.objs[slot];
+    if (entry & 1u) {
+      const detail::VoxBox& vb = o.tbv_voxels;
+      if (gx >= vb.lo.x && gx <= vb.hi.x && gy >= vb.lo.y && gy <= vb.hi.y && gz >= vb.lo.z &&
+          gz <= vb.hi.z)
+        w_.reveals.push_back(slot);
+    } else if (w_.obj_mark[slot] != w_.frame && s_.touches(o, o.center, gx, gy, gz)) {
+      add(slot);
+    }
+  }
+  // Revealing edits brick lists, so it waits until the scan is done.
+  for (std::size_t r = first_reveal; r < w_.reveals.size(); ++r)
+    if (s_.objs[w_.reveals[r]].under_tbv) reveal_in_frame(w_.reveals[r], m);
+  w_.reveals.resize(first_reveal);
+}
+
+void Traversal::fill_table(ExitTable& t, int face, std::int64_t la, std::int64_t j,
+                           const Range& rb, const Range& rd) const {
+  const int a = face >> 1;
+  const int b = a == 0 ? 1 : 0, d = a == 2 ? 1 : 2;
+  const double c = (face & 1) ? static_cast<double>(-j) : static_cast<double>(j + 1);
+  const double ea = lf_.e[a];
+  const double t0 = (c - ea) / (static_cast<double>(la) - ea);
+  const double t1 = (c - ea) / (static_cast<double>(la) + 1.0 - ea);
+  t.j = j;
+  t.ua = (face & 1) ? -j : j;
+  t.b0 = rb.lo;
+  t.d0 = rd.lo;
+  t.b.resize(static_cast<std::size_t>(2 * (rb.hi - rb.lo + 1)));
+  t.d.resize(static_cast<std::size_t>(2 * (rd.hi - rd.lo + 1)));
+  for (std::int64_t x = rb.lo; x <= rb.hi; ++x) {
+    const Range r = required(b, x, t0, t1, j);
+    t.b[static_cast<std::size_t>(2 * (x - rb.lo))] = r.lo;
+    t.b[static_cast<std::size_t>(2 * (x - rb.lo) + 1)] = r.hi;
+  }
+  for (std::int64_t x = rd.lo; x <= rd.hi; ++x) {
+    const Range r = required(d, x, t0, t1, j);
+    t.d[static_cast<std::size_t>(2 * (x - rd.lo))] = r.lo;
+    t.d[static_cast<std::size_t>(2 * (x - rd.lo) + 1)] = r.hi;
+  }
+}
+
+bool Traversal::table_occluded(const ExitTable& t, const std::int64_t v[3], int a, int b,
+                               int d) const {
+  const std::int64_t* rb = t.b.data() + 2 * (v[b] - t.b0);
+  const std::int64_t* rd = t.d.data() + 2 * (v[d] - t.d0);
+  if (rb[0] > rb[1] || rd[0] > rd[1]) return false;
+  std::int64_t u[3];
+  u[a] = t.ua;
+  for (u[d] = rd[0]; u[d] <= rd[1]; ++u[d])
+    for (u[b] = rb[0]; u[b] <= rb[1]; ++u[b])
+      if (!blocks(u)) return false;
+  return true;
+}
+
+bool Traversal::occluded(const std::int64_t v[3], std::int64_t m, int a, int b, int d) const {
+  if (m < 2) return false;  // Shell 1 sees the eye's voxel only, which never blocks.
+  // A voxel within C_j's slabs on b and d leaves C_j through the face it
+  // faces: the tables answer. Others may leave through several faces.
+  if (prev_.covers(v[b], v[d]) ? table_occluded(prev_, v, a, b, d) : occluded_at(v, m - 1))
+    return true;
+  // Testing only the previous shell erodes a shadow by about a voxel per
+  // shell, and the losses add up. The half-distance shell keeps the
+  // occluders' own voxels in view for twice as long, so its test stops the
+  // accumulation (docs/design.md, "Erosion").
+  if (m < 4) return false;
+  return half_.covers(v[b], v[d]) ? table_occluded(half_, v, a, b, d) : occluded_at(v, m / 2);
+}
+
+void Traversal::visit(const std::int64_t v[3], std::int64_t m, int face, int b, int d) {
+  const std::int64_t idx = gindex(v);
+  std::uint8_t& stamp = w_.stamp[static_cast<std::size_t>(idx)];
+  if ((stamp & ~3u) == tag_) return;  // Reached through another face already.
+  ++st_.voxels_visited;
+  const Vec3 lo{static_cast<double>(v[0]), static_cast<double>(v[1]), static_cast<double>(v[2])};
+  if (occluded(v, m, face >> 1, b, d)) {
+    stamp = static_cast<std::uint8_t>(tag_ | kBlocked);
+    return;
+  }
+  const bool opaque =
+      s_.static_opaque_at(idx) || (has_dyn_ && s_.dyn_opaque[static_cast<std::size_t>(idx)] > 0);
+  // An opaque voxel occludes only when wholly beyond the near plane: nearer
+  // geometry is clipped away by a renderer and must not hide anything.
+  const bool blocking = opaque && lf_.depth_min(lo) >= lf_.near + depth_tol_;
+  stamp = static_cast<std::uint8_t>(tag_ | (blocking ? kBlocked : kLive));
+  if (!blocking) {
+    IBox& fl = face_live_[face];
+    if (!face_has_live_[face]) {
+      for (int a = 0; a < 3; ++a) fl.lo[a] = fl.hi[a] = v[a];
+      face_has_live_[face] = true;
+    } else {
+      for (int a = 0; a < 3; ++a) {
+        fl.lo[a] = std::min(fl.lo[a], v[a]);
+        fl.hi[a] = std::max(fl.hi[a], v[a]);
+      }
+    }
+  }
+  if (lf_.depth_max(lo) >= lf_.near - depth_tol_) collect(idx, v, m);
+}
+
+void Traversal::run() {
+  const GridSpec& g = s_.spec;
+  has_dyn_ = !s_.dyn_opaque.empty();
+  const Vec3 eg = s_.to_grid(wf_.eye);
+  if (eye_too_far(eg)) return;  // Scene::frame falls back to frustum culling.
+  for (int a = 0; a < 3; ++a) {
+    E_[a] = static_cast<std::int64_t>(std::floor(eg[a]));
+    glo_[a] = -E_[a];
+    ghi_[a] = s_.res[a] - 1 - E_[a];
+  }
+  stride_[0] = 1;
+  stride_[1] = s_.res.x;
+  stride_[2] = std::int64_t{s_.res.x} * s_.res.y;
+  const Vec3 e = eg - Vec3(static_cast<double>(E_[0]), static_cast<double>(E_[1]),
+                           static_cast<double>(E_[2]));
+
+  // Depth of the farthest grid corner bounds the pyramid we need.
+  double dmax = -std::numeric_limits<double>::infinity();
+  for (int c = 0; c < 8; ++c) {
+    const Vec3 p{(c & 1) ? g.bounds_max.x : g.bounds_min.x, (c & 2) ? g.bounds_max.y : g.bounds_min.y,
+                 (c & 4) ? g.bounds_max.z : g.bounds_min.z};
+    dmax = std::fmax(dmax, glm::dot(p - wf_.eye, wf_.f));
+  }
+  const double world_scale = max_abs(wf_.eye) + s_.slop_bounds + 1.0;
+  const double far_eff = std::fmin(wf_.far, dmax + 1e-9 * world_scale + 1e-9);
+  if (!(far_eff >= wf_.near - 1e-9 * world_scale)) return;  // The grid is wholly before near or behind.
+
+  const double vmin = std::fmin(g.voxel_size.x, std::fmin(g.voxel_size.y, g.voxel_size.z));
+  const double vmax = std::fmax(g.voxel_size.x, std::fmax(g.voxel_size.y, g.voxel_size.z));
+  // Rounding allowance, local grid units: the eye's mapping, then the size of
+  // the numbers the shells reach.
+  tol_ = 1e-9 + 64.0 * kUlp * (world_scale / vmin + max_abs(eg) + double(std::max({s_.res.x, s_.res.y, s_.res.z})));
+  lf_ = detail::make_local_frustum(wf_, e, g.voxel_size, far_eff, tol_);
+  depth_tol_ = 4.0 * tol_ * vmax + 1e-9 * world_scale;
+
+  std::int64_t k0 = 0, kmax = 0;
+  for (int a = 0; a < 3; ++a) {
+    const std::int64_t da = glo_[a] > 0 ? glo_[a] : (ghi_[a] < 0 ? -ghi_[a] : 0);
+    k0 = std::max(k0, da);
+    kmax = std::max(kmax, std::max<std::int64_t>(std::llabs(glo_[a]), std::llabs(ghi_[a])));
+  }
+  eye_inside_ = k0 == 0;
+
+  std::vector<IBox> live, next;
+  auto add_face_rects = [&](std::int64_t m, std::vector<IBox>& out, bool only_outside) {
+    // The pyramid's cut with each face layer of shell m, minus the grid when
+    // only_outside: empty space that never blocks.
+    for (int face = 0; face < 6; ++face) {
+      const int a = face >> 1;
+      const std::int64_t la = (face & 1) ? -m : m;
+      const int b = a == 0 ? 1 : 0, d = a == 2 ? 1 : 2;
+      bool any_b = false, any_d = false;
+      Range rb = frustum_rect_axis(a, la, b, &any_b);
+      Range rd = frustum_rect_axis(a, la, d, &any_d);
+      if (!any_b || !any_d) continue;
+      rb.lo = std::max(rb.lo, -m), rb.hi = std::min(rb.hi, m);
+      rd.lo = std::max(rd.lo, -m), rd.hi = std::min(rd.hi, m);
+      if (rb.empty() || rd.empty()) continue;
+      auto push = [&](Range pb, Range pd) {
+        if (pb.empty() || pd.empty()) return;
+        IBox bx;
+        bx.lo[a] = bx.hi[a] = la;
+        bx.lo[b] = pb.lo, bx.hi[b] = pb.hi, bx.lo[d] = pd.lo, bx.hi[d] = pd.hi;
+        out.push_back(bx);
+      };
+      const bool layer_in = la >= glo_[a] && la <= ghi_[a];
+      if (!only_outside || !layer_in) {
+        push(rb, rd);
+        continue;
+      }
+      push({rb.lo, std::min(rb.hi, glo_[b] - 1)}, rd);
+      push({std::max(rb.lo, ghi_[b] + 1), rb.hi}, rd);
+      const Range mid{std::max(rb.lo, glo_[b]), std::min(rb.hi, ghi_[b])};
+      push(mid, {rd.lo, std::min(rd.hi, glo_[d] - 1)});
+      push(mid, {std::max(rd.lo, ghi_[d] + 1), rd.hi});
+    }
+  };
+
+  std::int64_t m = 0;
+  if (eye_inside_) {
+    live.push_back(IBox{{0, 0, 0}, {0, 0, 0}});
+  } else {
+    m = k0;
+    add_face_rects(k0 - 1, live, false);
+  }
+
+  for (; m <= kmax; ++m) {
+    ++st_.shells;
+    next.clear();
+    for (int f = 0; f < 6; ++f) face_has_live_[f] = false;
+    if (!eye_inside_) add_face_rects(m, next, true);
+    const std::int64_t R = m - 1 <= 1 ? 4 : 3;  // Exit voxels lie within R of v (docs/design.md).
+    for (int face = 0; face < 6; ++face) {
+      const int a = face >> 1;
+      const std::int64_t la = (face & 1) ? -m : m;
+      if (la < glo_[a] || la > ghi_[a]) continue;
+      if (m == 0 && face > 0) break;
+      const int b = a == 0 ? 1 : 0, d = a == 2 ? 1 : 2;
+      bool any_b = false, any_d = false;
+      Range rb = frustum_rect_axis(a, la, b, &any_b);
+      Range rd = frustum_rect_axis(a, la, d, &any_d);
+      if (!any_b || !any_d) continue;
+      rb.lo = std::max({rb.lo, -m, glo_[b]});
+      rb.hi = std::min({rb.hi, m, ghi_[b]});
+      rd.lo = std::max({rd.lo, -m, glo_[d]});
+      rd.hi = std::min({rd.hi, m, ghi_[d]});
+      if (rb.empty() || rd.empty()) continue;
+
+      if (m >= 2) fill_table(prev_, face, la, m - 1, rb, rd);
+      if (m >= 4) fill_table(half_, face, la, m / 2, rb, rd);
+      for (const IBox& L : live) {
+        if (la < L.lo[a] - R || la > L.hi[a] + R) continue;
+        const std::int64_t b0 = std::max(rb.lo, L.lo[b] - R), b1 = std::min(rb.hi, L.hi[b] + R);
+        const std::int64_t d0 = std::max(rd.lo, L.lo[d] - R), d1 = std::min(rd.hi, L.hi[d] + R);
+        std::int64_t v[3];
+        v[a] = la;
+        for (v[d] = d0; v[d] <= d1; ++v[d]) {
+          const Range row = row_in_pyramid(a, la, b, d, v[d], b0, b1);
+          for (v[b] = row.lo; v[b] <= row.hi; ++v[b]) {
+            // The row's ends were widened for rounding: test them exactly.
+            if ((v[b] == row.lo || v[b] == row.hi) &&
+                !lf_.may_contain_voxel(Vec3(static_cast<double>(v[0]), static_cast<double>(v[1]),
+                                            static_cast<double>(v[2]))))
+              continue;
+            visit(v, m, face, b, d);
+          }
+        }
+      }
+    }
+    for (int f = 0; f < 6; ++f)
+      if (face_has_live_[f]) next.push_back(face_live_[f]);
+    live.swap(next);
+    if (live.empty()) {
+      st_.early_exit = m < kmax;
+      break;
+    }
+  }
+}
+
+}  // namespace
+
+Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& scratch,
+                    FrameResult* out) {
+  Impl& s = *impl_;
+  if (Status st = validate_camera(camera); !st) return st;
+  if (!std::isfinite(t)) return Status::Error("t", "must be finite");
+  if (s.time_set && t < s.time) {
+    char buf[128];
+    std::snprintf(buf, sizeof buf, "time goes backwards: %.17g < %.17g", t, s.time);
+    return Status::Error("t", buf);
+  }
+  auto vit = s.viewers.find(viewer);
+  if (vit == s.viewers.end()) return Status::Error("viewer", "unknown viewer " + std::to_string(viewer));
+
+  const auto start = std::chrono::steady_clock::now();
+  s.time = t;
+  s.time_set = true;
+  Scratch::Impl& w = scratch.impl();
+  w.begin(static_cast<std::size_t>(s.spec.voxel_count()), s.objs.size());
+
+  FrameStats st = s.pending;
+  s.pending = FrameStats{};
+  std::vector<std::uint32_t> wake;
+  wake.swap(s.pending_wake);
+
+  // Expired TBVs get a new validity period around the object's current
+  // position (paper 4.1, criterion 2); an object that stayed hidden through a
+  // whole period gets twice as long the next time.
+  while (!s.expiry.empty() && s.expiry.top().expiry <= t) {
+    const detail::ExpiryEntry e = s.expiry.top();
+    s.expiry.pop();
+    Obj& o = s.objs[e.slot];
+    if (!o.under_tbv || o.tbv_gen != e.gen) continue;
+    s.drop_tbv(e.slot);
+    if (s.options.tbv_period <= 0.0) o.tbv_period = std::fmin(2.0 * o.tbv_period, s.options.tbv_max_period);
+    s.make_tbv(e.slot, t);
+    ++st.tbvs_expired;
+    wake.push_back(e.slot);
+  }
+
+  const WorldFrustum wf = detail::make_world_frustum(camera);
+
+  // TBVs reaching beyond the grid: their outer part has no voxels.
+  if (!s.outside_tbvs.empty()) {
+    w.reveals.assign(s.outside_tbvs.begin(), s.outside_tbvs.end());
+    for (std::uint32_t slot : w.reveals) {
+      ++st.outside_tested;
+      const Obj& o = s.objs[slot];
+      if (o.under_tbv && outside_part_visible(wf, s.spec, o.tbv_lo, o.tbv_hi)) {
+        s.reveal(slot);
+        ++st.tbvs_revealed;
+        wake.push_back(slot);
+      }
+    }
+    w.reveals.clear();
+  }
+
+  Traversal trav(s, w, wf, st, wake);
+  trav.run();
+
+  // An eye so far away that shell indices lose precision: fall back to
+  // frustum culling of everything, which is always conservative.
+  {
+    if (eye_too_far(s.to_grid(camera.eye))) {
+      for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
+        Obj& o = s.objs[slot];
+        if (o.under_tbv) {
+          if (wf.may_intersect_box(o.tbv_lo, o.tbv_hi)) {
+            s.reveal(slot);
+            ++st.tbvs_revealed;
+            wake.push_back(slot);
+          } else {
+            continue;
+          }
+        }
+        if (wf.may_intersect_box(o.box_lo(), o.box_hi()) && w.obj_mark[slot] != w.frame) {
+          w.obj_mark[slot] = w.frame;
+          w.pvs.push_back(slot);
+        }
+      }
+    }
+  }
+
+  // Objects reaching beyond the grid: their outer part has no voxels.
+  for (std::uint32_t slot : s.outside_objs) {
+    if (w.obj_mark[slot] == w.frame) continue;
+    ++st.outside_tested;
+    const Obj& o = s.objs[slot];
+    if (outside_part_visible(wf, s.spec, o.box_lo(), o.box_hi())) {
+      w.obj_mark[slot] = w.frame;
+      w.pvs.push_back(slot);
+    }
+  }
+
+  // Claims: a dynamic object is claimed by every viewer whose last PVS holds
+  // it; one no viewer claims is hidden from all of them and gets a TBV.
+  std::vector<std::uint32_t> pvs = w.pvs;
+  std::sort(pvs.begin(), pvs.end());
+  detail::ViewerState& vs = vit->second;
+  {
+    auto a = vs.last_pvs.begin();
+    auto b = pvs.begin();
+    while (a != vs.last_pvs.end() || b != pvs.end()) {
+      if (b == pvs.end() || (a != vs.last_pvs.end() && *a < *b)) {
+        Obj& o = s.objs[*a];
+        if (o.dynamic && --o.claims == 0 && !o.pending_unclaimed) {
+          o.pending_unclaimed = true;
+          s.unclaimed.push_back(*a);
+        }
+        ++a;
+      } else if (a == vs.last_pvs.end() || *b < *a) {
+        Obj& o = s.objs[*b];
+        if (o.dynamic) ++o.claims;
+        ++b;
+      } else {
+        ++a, ++b;
+      }
+    }
+  }
+  for (std::uint32_t slot : s.unclaimed) {
+    Obj& o = s.objs[slot];
+    o.pending_unclaimed = false;
+    if (o.claims == 0 && !o.under_tbv) {
+      s.undiscretize(slot);
+      s.make_tbv(slot, t);
+      ++st.tbvs_created;
+    }
+  }
+  s.unclaimed.clear();
+
+  out->pvs.clear();
+  out->wake.clear();
+  for (std::uint32_t slot : pvs) {
+    out->pvs.push_back(s.objs[slot].id);
+    if (s.objs[slot].dynamic) wake.push_back(slot);
+  }
+  vs.last_pvs.swap(pvs);
+  for (std::uint32_t slot : wake) out->wake.push_back(s.objs[slot].id);
+  std::sort(out->pvs.begin(), out->pvs.end());
+  std::sort(out->wake.begin(), out->wake.end());
+  out->wake.erase(std::unique(out->wake.begin(), out->wake.end()), out->wake.end());
+
+  st.objects_discretized += s.pending.objects_discretized;
+  s.pending.objects_discretized = 0;
+  st.pvs_size = static_cast<std::uint32_t>(out->pvs.size());
+  st.tbvs_active = s.tbv_count;
+  st.time_us = std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count();
+  out->stats = st;
+  return Status::Ok();
+}
+
+}  // namespace voxvis

@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# Set-up command 2: installs what is missing, then builds and runs the whole
+# test suite twice: a Release build, and a build under AddressSanitizer and
+# UndefinedBehaviorSanitizer. Also checks that the benchmarks run (their
+# figures are not judged here; see docs/performance.md).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+source deploy/deps.sh
+voxvis_ensure_deps
+
+jobs=$(nproc 2>/dev/null || echo 2)
+
+echo "== Release build and tests" >&2
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release
+cmake --build build -j "$jobs"
+ctest --test-dir build --output-on-failure -j "$jobs"
+
+echo "== Benchmarks run (one short pass, figures not judged)" >&2
+build/bench_frame --benchmark_filter='Walkthrough/50' --benchmark_min_time=0.01 >/dev/null
+
+echo "== AddressSanitizer + UndefinedBehaviorSanitizer build and tests" >&2
+cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DVOXVIS_SANITIZE=ON \
+  -DVOXVIS_BUILD_BENCHMARKS=OFF
+cmake --build build-asan -j "$jobs"
+# Property tests run a quarter of their scenes under the sanitizers' slowdown.
+VOXVIS_TEST_SCALE="${VOXVIS_TEST_SCALE:-0.25}" \
+  ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+  ctest --test-dir build-asan --output-on-failure -j "$jobs"
