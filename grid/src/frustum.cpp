@@ -1,5 +1,6 @@
 #include "frustum.h"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -13,7 +14,7 @@ bool finite3(const Vec3& v) {
 }
 
 double max_abs(const Vec3& v) {
-  return std::fmax(std::fabs(v.x), std::fmax(std::fabs(v.y), std::fabs(v.z)));
+  return std::max(std::fabs(v.x), std::max(std::fabs(v.y), std::fabs(v.z)));
 }
 
 std::string num(double v) {
@@ -111,20 +112,6 @@ LocalFrustum make_local_frustum(const WorldFrustum& wf, const Vec3& e, const Vec
     }
   }
   return lf;
-}
-
-double LocalFrustum::depth_min(const Vec3& lo) const {
-  const Vec3 a = lo - e;
-  const Vec3& n = depth_n;
-  return (n.x > 0 ? n.x * a.x : n.x * (a.x + 1.0)) + (n.y > 0 ? n.y * a.y : n.y * (a.y + 1.0)) +
-         (n.z > 0 ? n.z * a.z : n.z * (a.z + 1.0));
-}
-
-double LocalFrustum::depth_max(const Vec3& lo) const {
-  const Vec3 a = lo - e;
-  const Vec3& n = depth_n;
-  return (n.x > 0 ? n.x * (a.x + 1.0) : n.x * a.x) + (n.y > 0 ? n.y * (a.y + 1.0) : n.y * a.y) +
-         (n.z > 0 ? n.z * (a.z + 1.0) : n.z * a.z);
 }
 
 }  // namespace detail

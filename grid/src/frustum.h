@@ -58,8 +58,19 @@ struct LocalFrustum {
     }
     return true;
   }
-  double depth_min(const Vec3& lo) const;
-  double depth_max(const Vec3& lo) const;
+  /// Smallest and largest depth (world units) over unit voxel [lo, lo+1].
+  double depth_min(const Vec3& lo) const {
+    const Vec3 a = lo - e;
+    const Vec3& n = depth_n;
+    return (n.x > 0 ? n.x * a.x : n.x * (a.x + 1.0)) + (n.y > 0 ? n.y * a.y : n.y * (a.y + 1.0)) +
+           (n.z > 0 ? n.z * a.z : n.z * (a.z + 1.0));
+  }
+  double depth_max(const Vec3& lo) const {
+    const Vec3 a = lo - e;
+    const Vec3& n = depth_n;
+    return (n.x > 0 ? n.x * (a.x + 1.0) : n.x * a.x) + (n.y > 0 ? n.y * (a.y + 1.0) : n.y * a.y) +
+           (n.z > 0 ? n.z * (a.z + 1.0) : n.z * a.z);
+  }
 };
 
 /// Builds the local pyramid. `eye_grid_frac` is the eye in local grid units,

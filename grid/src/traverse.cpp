@@ -54,21 +54,28 @@ struct Range {
 };
 
 /// Where the segments to a face's voxels leave C_j, tabulated per row and
-/// column: for a voxel (b, d) of the face that lies within C_j's slabs on b
-/// and d, the exit voxels of shell j are [b_lo, b_hi] x [d_lo, d_hi] on the
+/// column: for a voxel (b, d) whose projection falls wholly on the face of
+/// C_j it faces, the exit voxels of shell j are [b_lo, b_hi] x [d_lo, d_hi] on the
 /// face of C_j at `ua` on the face's axis. Empty ranges: prove nothing.
 struct ExitTable {
   std::int64_t j = 0;   ///< Shell the exits are on.
   std::int64_t ua = 0;  ///< Local coordinate of C_j's face layer on the face axis.
   std::int64_t b0 = 0, d0 = 0;
-  std::vector<std::int64_t> b, d;  ///< Pairs (lo, hi) per column / row.
+  std::int64_t base = 0;          ///< Voxel index of local (ua, 0, 0) on (a, b, d).
+  std::int64_t sb = 0, sd = 0;    ///< Index strides along b and d.
+  bool layer_in_grid = true;      ///< The face layer of C_j lies in the grid.
+  /// Per column / row: (lo, hi) exit range, and whether the whole
+  /// projection falls on this face of C_j (else the segments may leave
+  /// through a side face and the general routine must answer).
+  std::vector<std::int64_t> b, d;
+  std::vector<std::uint8_t> b_whole, d_whole;
   bool covers(std::int64_t vb, std::int64_t vd) const {
-    return vb >= -j && vb <= j && vd >= -j && vd <= j;
+    return b_whole[static_cast<std::size_t>(vb - b0)] && d_whole[static_cast<std::size_t>(vd - d0)];
   }
 };
 
 double max_abs(const Vec3& v) {
-  return std::fmax(std::fabs(v.x), std::fmax(std::fabs(v.y), std::fabs(v.z)));
+  return std::max(std::fabs(v.x), std::max(std::fabs(v.y), std::fabs(v.z)));
 }
 
 /// Beyond 2^40 voxels from the grid, shell arithmetic in doubles would lose
@@ -123,15 +130,16 @@ class Traversal {
     const std::uint8_t st = w_.stamp[static_cast<std::size_t>(gindex(u))];
     return (st & ~3u) != tag_ || (st & 3u) == kBlocked;
   }
-  Range required(int b, std::int64_t vb, double t0, double t1, std::int64_t k) const;
+  Range required(int b, std::int64_t vb, double t0, double t1, std::int64_t k,
+                 bool* whole = nullptr) const;
   bool occluded_at(const std::int64_t v[3], std::int64_t j) const;
   Range frustum_rect_axis(int a, std::int64_t la, int b, bool* any) const;
   Range row_in_pyramid(int a, std::int64_t la, int b, int d, std::int64_t vd, std::int64_t b0,
                        std::int64_t b1) const;
   void fill_table(ExitTable& t, int face, std::int64_t la, std::int64_t j, const Range& rb,
                   const Range& rd) const;
-  bool table_occluded(const ExitTable& t, const std::int64_t v[3], int a, int b, int d) const;
-  bool occluded(const std::int64_t v[3], std::int64_t m, int a, int b, int d) const;
+  bool table_occluded(const ExitTable& t, const std::int64_t v[3], int b, int d) const;
+  bool occluded(const std::int64_t v[3], std::int64_t m, int b, int d) const;
   void visit(const std::int64_t v[3], std::int64_t m, int face, int b, int d);
   void collect(std::int64_t idx, const std::int64_t v[3], std::int64_t m);
   void reveal_in_frame(std::uint32_t slot, std::int64_t m);
@@ -157,16 +165,18 @@ class Traversal {
   bool face_has_live_[6]{};
 };
 
-Range Traversal::required(int b, std::int64_t vb, double t0, double t1, std::int64_t k) const {
+Range Traversal::required(int b, std::int64_t vb, double t0, double t1, std::int64_t k,
+                          bool* whole) const {
   // Exit points q_b = e_b + (p_b - e_b) * t for p_b in {vb, vb+1}, t in {t0, t1}.
   const double eb = lf_.e[b];
   const double p0 = static_cast<double>(vb) - eb;
   const double p1 = p0 + 1.0;
   const double q[4] = {eb + p0 * t0, eb + p1 * t0, eb + p0 * t1, eb + p1 * t1};
-  const double lo = std::fmin(std::fmin(q[0], q[1]), std::fmin(q[2], q[3]));
-  const double hi = std::fmax(std::fmax(q[0], q[1]), std::fmax(q[2], q[3]));
+  const double lo = std::min(std::min(q[0], q[1]), std::min(q[2], q[3]));
+  const double hi = std::max(std::max(q[0], q[1]), std::max(q[2], q[3]));
   const double kd = static_cast<double>(k);
   Range r;
+  if (whole) *whole = lo >= -kd - tol_ && hi <= kd + 1.0 + tol_;
   if (hi < -kd - tol_ || lo > kd + 1.0 + tol_) return r;  // Leaves through another face.
   r.lo = std::max(-k, static_cast<std::int64_t>(std::floor(lo - tol_)));
   r.hi = std::min(k, static_cast<std::int64_t>(std::floor(hi + tol_)));
@@ -334,45 +344,61 @@ void Traversal::fill_table(ExitTable& t, int face, std::int64_t la, std::int64_t
   t.ua = (face & 1) ? -j : j;
   t.b0 = rb.lo;
   t.d0 = rd.lo;
-  t.b.resize(static_cast<std::size_t>(2 * (rb.hi - rb.lo + 1)));
-  t.d.resize(static_cast<std::size_t>(2 * (rd.hi - rd.lo + 1)));
-  for (std::int64_t x = rb.lo; x <= rb.hi; ++x) {
-    const Range r = required(b, x, t0, t1, j);
-    t.b[static_cast<std::size_t>(2 * (x - rb.lo))] = r.lo;
-    t.b[static_cast<std::size_t>(2 * (x - rb.lo) + 1)] = r.hi;
-  }
-  for (std::int64_t x = rd.lo; x <= rd.hi; ++x) {
-    const Range r = required(d, x, t0, t1, j);
-    t.d[static_cast<std::size_t>(2 * (x - rd.lo))] = r.lo;
-    t.d[static_cast<std::size_t>(2 * (x - rd.lo) + 1)] = r.hi;
-  }
+  t.sb = stride_[b];
+  t.sd = stride_[d];
+  t.base = (E_[a] + t.ua) * stride_[a] + E_[b] * stride_[b] + E_[d] * stride_[d];
+  t.layer_in_grid = t.ua >= glo_[a] && t.ua <= ghi_[a];
+  auto fill = [&](int axis, const Range& range, std::vector<std::int64_t>& out,
+                  std::vector<std::uint8_t>& whole) {
+    out.resize(static_cast<std::size_t>(2 * (range.hi - range.lo + 1)));
+    whole.resize(static_cast<std::size_t>(range.hi - range.lo + 1));
+    for (std::int64_t x = range.lo; x <= range.hi; ++x) {
+      bool w = false;
+      const Range r = required(axis, x, t0, t1, j, &w);
+      const auto i = static_cast<std::size_t>(x - range.lo);
+      out[2 * i] = r.lo;
+      out[2 * i + 1] = r.hi;
+      whole[i] = w;
+    }
+  };
+  fill(b, rb, t.b, t.b_whole);
+  fill(d, rd, t.d, t.d_whole);
 }
 
-bool Traversal::table_occluded(const ExitTable& t, const std::int64_t v[3], int a, int b,
-                               int d) const {
+bool Traversal::table_occluded(const ExitTable& t, const std::int64_t v[3], int b, int d) const {
   const std::int64_t* rb = t.b.data() + 2 * (v[b] - t.b0);
   const std::int64_t* rd = t.d.data() + 2 * (v[d] - t.d0);
   if (rb[0] > rb[1] || rd[0] > rd[1]) return false;
-  std::int64_t u[3];
-  u[a] = t.ua;
-  for (u[d] = rd[0]; u[d] <= rd[1]; ++u[d])
-    for (u[b] = rb[0]; u[b] <= rb[1]; ++u[b])
-      if (!blocks(u)) return false;
+  if (!eye_inside_) {
+    // Exits may lie beyond the grid, in empty space that never blocks.
+    if (!t.layer_in_grid || rb[0] < glo_[b] || rb[1] > ghi_[b] || rd[0] < glo_[d] ||
+        rd[1] > ghi_[d])
+      return false;
+  }
+  // With the eye inside, required() clamped the ranges to the grid.
+  const std::uint8_t* stamp = w_.stamp.data();
+  for (std::int64_t ud = rd[0]; ud <= rd[1]; ++ud) {
+    const std::int64_t row = t.base + ud * t.sd;
+    for (std::int64_t ub = rb[0]; ub <= rb[1]; ++ub) {
+      const std::uint8_t st = stamp[static_cast<std::size_t>(row + ub * t.sb)];
+      if ((st & ~3u) == tag_ && (st & 3u) == kLive) return false;
+    }
+  }
   return true;
 }
 
-bool Traversal::occluded(const std::int64_t v[3], std::int64_t m, int a, int b, int d) const {
+bool Traversal::occluded(const std::int64_t v[3], std::int64_t m, int b, int d) const {
   if (m < 2) return false;  // Shell 1 sees the eye's voxel only, which never blocks.
-  // A voxel within C_j's slabs on b and d leaves C_j through the face it
-  // faces: the tables answer. Others may leave through several faces.
-  if (prev_.covers(v[b], v[d]) ? table_occluded(prev_, v, a, b, d) : occluded_at(v, m - 1))
+  // A voxel whose projection falls wholly on the face of C_j it faces: the
+  // tables answer. Others may leave through several faces.
+  if (prev_.covers(v[b], v[d]) ? table_occluded(prev_, v, b, d) : occluded_at(v, m - 1))
     return true;
   // Testing only the previous shell erodes a shadow by about a voxel per
   // shell, and the losses add up. The half-distance shell keeps the
   // occluders' own voxels in view for twice as long, so its test stops the
   // accumulation (docs/design.md, "Erosion").
   if (m < 4) return false;
-  return half_.covers(v[b], v[d]) ? table_occluded(half_, v, a, b, d) : occluded_at(v, m / 2);
+  return half_.covers(v[b], v[d]) ? table_occluded(half_, v, b, d) : occluded_at(v, m / 2);
 }
 
 void Traversal::visit(const std::int64_t v[3], std::int64_t m, int face, int b, int d) {
@@ -381,7 +407,7 @@ void Traversal::visit(const std::int64_t v[3], std::int64_t m, int face, int b, 
   if ((stamp & ~3u) == tag_) return;  // Reached through another face already.
   ++st_.voxels_visited;
   const Vec3 lo{static_cast<double>(v[0]), static_cast<double>(v[1]), static_cast<double>(v[2])};
-  if (occluded(v, m, face >> 1, b, d)) {
+  if (occluded(v, m, b, d)) {
     stamp = static_cast<std::uint8_t>(tag_ | kBlocked);
     return;
   }
@@ -514,12 +540,25 @@ void Traversal::run() {
       rd.hi = std::min({rd.hi, m, ghi_[d]});
       if (rb.empty() || rd.empty()) continue;
 
-      if (m >= 2) fill_table(prev_, face, la, m - 1, rb, rd);
-      if (m >= 4) fill_table(half_, face, la, m / 2, rb, rd);
+      // Only the part of the rectangle near shell m-1's live voxels can
+      // hold a non-occluded voxel.
+      Range cb, cd;
+      cb.lo = cd.lo = std::numeric_limits<std::int64_t>::max();
+      cb.hi = cd.hi = std::numeric_limits<std::int64_t>::min();
       for (const IBox& L : live) {
         if (la < L.lo[a] - R || la > L.hi[a] + R) continue;
-        const std::int64_t b0 = std::max(rb.lo, L.lo[b] - R), b1 = std::min(rb.hi, L.hi[b] + R);
-        const std::int64_t d0 = std::max(rd.lo, L.lo[d] - R), d1 = std::min(rd.hi, L.hi[d] + R);
+        cb.lo = std::min(cb.lo, std::max(rb.lo, L.lo[b] - R));
+        cb.hi = std::max(cb.hi, std::min(rb.hi, L.hi[b] + R));
+        cd.lo = std::min(cd.lo, std::max(rd.lo, L.lo[d] - R));
+        cd.hi = std::max(cd.hi, std::min(rd.hi, L.hi[d] + R));
+      }
+      if (cb.empty() || cd.empty()) continue;
+      if (m >= 2) fill_table(prev_, face, la, m - 1, cb, cd);
+      if (m >= 4) fill_table(half_, face, la, m / 2, cb, cd);
+      for (const IBox& L : live) {
+        if (la < L.lo[a] - R || la > L.hi[a] + R) continue;
+        const std::int64_t b0 = std::max(cb.lo, L.lo[b] - R), b1 = std::min(cb.hi, L.hi[b] + R);
+        const std::int64_t d0 = std::max(cd.lo, L.lo[d] - R), d1 = std::min(cd.hi, L.hi[d] + R);
         std::int64_t v[3];
         v[a] = la;
         for (v[d] = d0; v[d] <= d1; ++v[d]) {
