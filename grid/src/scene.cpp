@@ -489,8 +489,10 @@ Status Scene::apply_moves(double t, std::span<const Move> moves, MoveReport* rep
     Obj& o = s.objs[slot];
     const double dist = glm::length(m.center - o.center);
     bool too_fast = false;
-    if (std::isfinite(o.last_move_t)) {
-      const double allowed = o.max_speed * (t - o.last_move_t);
+    // Before the first frame nothing has been observed, so nothing is checked.
+    const double since = std::isfinite(o.last_move_t) ? o.last_move_t : s.first_frame_time;
+    if (std::isfinite(since)) {
+      const double allowed = o.max_speed * (t - since);
       too_fast = dist > allowed * (1.0 + 1e-9) + s.slop(max_abs(m.center));
     }
     o.last_move_t = t;

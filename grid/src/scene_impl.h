@@ -15,6 +15,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <queue>
 #include <unordered_map>
 #include <vector>
@@ -132,6 +133,9 @@ struct Scene::Impl {
 
   double time = 0.0;
   bool time_set = false;
+  /// Time of the first frame: objects that have not moved since have been at
+  /// their initial centres from then on. NaN before the first frame.
+  double first_frame_time = std::numeric_limits<double>::quiet_NaN();
 
   // Counters gathered between frames (moves), reported with the next frame.
   FrameStats pending;

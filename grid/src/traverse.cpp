@@ -602,6 +602,7 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
   const auto start = std::chrono::steady_clock::now();
   s.time = t;
   s.time_set = true;
+  if (!std::isfinite(s.first_frame_time)) s.first_frame_time = t;
   Scratch::Impl& w = scratch.impl();
   w.begin(static_cast<std::size_t>(s.spec.voxel_count()), s.objs.size());
 

@@ -1,0 +1,229 @@
+// replay.cpp — `voxvis replay`: a scene file and a frames file in, one PVS
+// line per frame out.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <unistd.h>
+
+#include "cli.h"
+#include "output_file.h"
+#include "voxvis/format.h"
+#include "voxvis/scene.h"
+
+namespace voxvis::cli {
+
+int report(const FormatError& error) {
+  std::fprintf(stderr, "voxvis: error: %s\n", error.str().c_str());
+  return kExitError;
+}
+
+bool parse_grid_arg(const std::string& text, int max_per_axis, int out[3], std::string* message) {
+  const auto bad = [&](const std::string& why) {
+    *message = why + " (expected NX,NY,NZ: three integers >= 1, for example 64,32,64), got '" +
+               text + "'";
+    return false;
+  };
+  std::size_t pos = 0;
+  for (int axis = 0; axis < 3; ++axis) {
+    if (axis > 0) {
+      if (pos >= text.size() || text[pos] != ',') return bad("malformed value");
+      ++pos;
+    }
+    const std::size_t start = pos;
+    while (pos < text.size() && text[pos] >= '0' && text[pos] <= '9') ++pos;
+    if (pos == start) {
+      if (pos < text.size() && text[pos] == '-') return bad("resolutions must be >= 1");
+      return bad("malformed value");
+    }
+    // Compare as digits first: values beyond int range are simply too large.
+    std::string digits = text.substr(start, pos - start);
+    digits.erase(0, std::min(digits.find_first_not_of('0'), digits.size() - 1));
+    const std::string limit = std::to_string(max_per_axis);
+    if (digits.size() > limit.size() || (digits.size() == limit.size() && digits > limit)) {
+      *message = "resolution " + digits + " exceeds the limit of " + limit +
+                 " voxels per axis, got '" + text + "'";
+      return false;
+    }
+    const int v = std::stoi(digits);
+    if (v < 1) return bad("resolutions must be >= 1");
+    out[axis] = v;
+  }
+  if (pos != text.size()) return bad("malformed value");
+  return true;
+}
+
+namespace {
+
+bool read_file(const std::string& path, std::string* text, FormatError* error) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    *error = FormatError{path, 0, "", std::string("cannot open: ") + std::strerror(errno)};
+    return false;
+  }
+  std::ostringstream buf;
+  buf << in.rdbuf();
+  if (in.bad()) {
+    *error = FormatError{path, 0, "", std::string("cannot read: ") + std::strerror(errno)};
+    return false;
+  }
+  *text = std::move(buf).str();
+  return true;
+}
+
+bool blank(const std::string& line) {
+  return line.find_first_not_of(" \t\r") == std::string::npos;
+}
+
+/// Nearest-rank percentile of sorted values, p in (0, 100].
+double percentile(const std::vector<double>& sorted, double p) {
+  if (sorted.empty()) return 0.0;
+  const double rank = std::ceil(p / 100.0 * static_cast<double>(sorted.size()));
+  const auto i = static_cast<std::size_t>(std::max(1.0, rank)) - 1;
+  return sorted[std::min(i, sorted.size() - 1)];
+}
+
+class Progress {
+ public:
+  explicit Progress(bool enabled) : enabled_(enabled) {}
+  void update(std::size_t frames) {
+    if (!enabled_) return;
+    const auto now = Clock::now();
+    if (now - last_ < std::chrono::milliseconds(500)) return;
+    last_ = now;
+    const double secs = std::chrono::duration<double>(now - start_).count();
+    std::fprintf(stderr, "\rvoxvis: frame %zu, %.0f fps\x1b[K", frames,
+                 secs > 0.0 ? static_cast<double>(frames) / secs : 0.0);
+    std::fflush(stderr);
+    shown_ = true;
+  }
+  void finish() {
+    if (shown_) std::fputs("\r\x1b[K", stderr);
+    shown_ = false;
+  }
+  double elapsed() const { return std::chrono::duration<double>(Clock::now() - start_).count(); }
+
+ private:
+  using Clock = std::chrono::steady_clock;
+  bool enabled_;
+  bool shown_ = false;
+  Clock::time_point start_ = Clock::now();
+  Clock::time_point last_ = Clock::now();
+};
+
+}  // namespace
+
+int run_replay(const ReplayArgs& args) {
+  // The scene: parse, apply --grid, build.
+  std::string text;
+  FormatError error;
+  if (!read_file(args.scene, &text, &error)) return report(error);
+  SceneDesc desc;
+  if (!parse_scene(text, args.scene, &desc, &error)) return report(error);
+  text.clear();
+  text.shrink_to_fit();
+
+  SceneOptions options;
+  if (args.tbv_period) options.tbv_period = *args.tbv_period;
+  if (!args.grid.empty()) {
+    int res[3] = {0, 0, 0};
+    std::string message;
+    if (!parse_grid_arg(args.grid, options.max_resolution, res, &message)) {
+      return report(FormatError{"", 0, "--grid", message});
+    }
+    desc.grid = glm::ivec3(res[0], res[1], res[2]);
+  }
+  // Open the frames and the output before the (possibly slow) scene build,
+  // so that a bad path fails at once.
+  std::ifstream frames(args.frames, std::ios::binary);
+  if (!frames) {
+    return report(FormatError{args.frames, 0, "", std::string("cannot open: ") + std::strerror(errno)});
+  }
+  OutputFile out;
+  std::string message;
+  if (!out.open(args.out, &message)) return report(FormatError{args.out, 0, "", message});
+
+  std::unique_ptr<Scene> scene;
+  if (const Status st = Scene::create(desc, options, &scene); !st.ok) {
+    std::string what = st.message;
+    if (!args.grid.empty() && st.field.rfind("grid", 0) == 0) what += " (resolution from --grid)";
+    return report(FormatError{args.scene, 0, st.field, what});
+  }
+  if (scene == nullptr) return report(FormatError{args.scene, 0, "", "scene creation failed"});
+  const ViewerId viewer = scene->add_viewer();
+
+  Scratch scratch;
+  FrameInput frame;
+  FrameResult result;
+  MoveReport moves;
+  std::vector<double> times;
+  double pvs_total = 0.0;
+  std::size_t too_fast = 0;
+  std::size_t index = 0;
+  int line_no = 0;
+  std::string line;
+  std::string out_line;
+  Progress progress(!args.quiet && ::isatty(STDERR_FILENO) != 0);
+
+  while (std::getline(frames, line)) {
+    ++line_no;
+    if (blank(line)) continue;
+    if (!parse_frame_line(line, args.frames, line_no, &frame, &error)) {
+      progress.finish();
+      return report(error);
+    }
+    if (!frame.moves.empty()) {
+      moves = MoveReport{};
+      if (const Status st = scene->apply_moves(frame.t, frame.moves, &moves); !st.ok) {
+        progress.finish();
+        return report(FormatError{args.frames, line_no, st.field, st.message});
+      }
+      too_fast += moves.too_fast.size();
+    }
+    if (const Status st = scene->frame(viewer, frame.camera, frame.t, scratch, &result); !st.ok) {
+      progress.finish();
+      return report(FormatError{args.frames, line_no, st.field, st.message});
+    }
+    out_line = result_to_json(index, result);
+    out_line += '\n';
+    if (!out.write(out_line)) {
+      progress.finish();
+      return report(FormatError{out.path(), 0, "", std::string("cannot write: ") + std::strerror(errno)});
+    }
+    times.push_back(result.stats.time_us);
+    pvs_total += static_cast<double>(result.pvs.size());
+    ++index;
+    progress.update(index);
+  }
+  if (frames.bad()) {
+    progress.finish();
+    return report(FormatError{args.frames, line_no, "", std::string("cannot read: ") + std::strerror(errno)});
+  }
+  progress.finish();
+  if (!out.commit(&message)) return report(FormatError{out.path(), 0, "", message});
+
+  if (!args.quiet) {
+    const double wall = progress.elapsed();
+    std::vector<double> sorted = times;
+    std::sort(sorted.begin(), sorted.end());
+    double sum = 0.0;
+    for (const double t : sorted) sum += t;
+    const double n = static_cast<double>(std::max<std::size_t>(sorted.size(), 1));
+    std::fprintf(stderr,
+                 "voxvis: %zu frames in %.2f s; time_us mean %.1f, median %.1f, p99 %.1f; "
+                 "mean PVS %.1f objects; too-fast moves %zu\n",
+                 index, wall, sum / n, percentile(sorted, 50.0), percentile(sorted, 99.0),
+                 pvs_total / n, too_fast);
+  }
+  return kExitOk;
+}
+
+}  // namespace voxvis::cli

@@ -1,0 +1,1058 @@
+// format.cpp — the batch formats of format.h; docs/formats.md is the contract.
+//
+// Parsing happens in two steps:
+//  1. nlohmann::json::sax_parse builds a DOM through our own SAX handler
+//     (DomBuilder). The input is fed through CountingIterator, which counts the
+//     lines of the characters the lexer consumes, so every SAX callback knows
+//     the line of the token just read (syntax errors get their line this way).
+//     The handler tracks the field path ("objects[3].radius") of every value
+//     and rejects duplicate keys, which nlohmann's own DOM parser would
+//     silently overwrite.
+//  2. The DOM is validated field by field; an error names the path.
+//  3. Only then, for the error's line, a second SAX pass (LineFinder) over the
+//     same text stops at the first key or array element with that path and
+//     reports its line, falling back to the nearest parent. Looking lines up
+//     lazily keeps valid documents fast: recording the line of every field of
+//     a large scene up front would cost as much as the parse itself.
+// Nothing here throws on bad input: SAX callbacks return false to stop, and
+// values are only read after their type has been checked.
+#include "voxvis/format.h"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <cstddef>
+#include <iterator>
+#include <limits>
+#include <string>
+#include <string_view>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace voxvis {
+
+std::string FormatError::str() const {
+  std::string out;
+  if (!source.empty()) {
+    out += source;
+    if (line > 0) out += ":" + std::to_string(line);
+    out += ": ";
+  } else if (line > 0) {
+    out += "line " + std::to_string(line) + ": ";
+  }
+  if (!field.empty()) out += field + ": ";
+  out += message;
+  return out;
+}
+
+namespace {
+
+using json = nlohmann::json;
+
+constexpr std::string_view kSceneFormat = "voxvis-scene/1";
+constexpr int kMaxGridPerAxis = 8192;
+constexpr std::size_t kMaxDepth = 64;
+constexpr double kMaxId = 4294967295.0;
+
+// ---------------------------------------------------------------------------
+// Small text helpers.
+
+std::string num_str(double v) {
+  if (!std::isfinite(v)) return std::isnan(v) ? "nan" : (v > 0 ? "inf" : "-inf");
+  char buf[64];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, r.ptr);
+}
+
+template <typename Int>
+void append_int(std::string& out, Int v) {
+  char buf[32];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  out.append(buf, r.ptr);
+}
+
+/// JSON number text that parses back to exactly `v` (shortest round-trip
+/// form); null for non-finite values, which no voxvis format accepts.
+void append_number(std::string& out, double v) {
+  if (!std::isfinite(v)) {
+    out += "null";
+    return;
+  }
+  char buf[64];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  out.append(buf, r.ptr);
+}
+
+void append_vec3(std::string& out, const Vec3& v) {
+  out += '[';
+  append_number(out, v.x);
+  out += ", ";
+  append_number(out, v.y);
+  out += ", ";
+  append_number(out, v.z);
+  out += ']';
+}
+
+/// A key or string value quoted for an error message: printable ASCII kept,
+/// everything else escaped, long text cut.
+std::string quote_text(std::string_view s, char quote = '\'') {
+  constexpr std::size_t kMax = 48;
+  std::string out(1, quote);
+  for (std::size_t i = 0; i < s.size() && i < kMax; ++i) {
+    const auto c = static_cast<unsigned char>(s[i]);
+    if (c == '\\' || c == static_cast<unsigned char>(quote)) {
+      out += '\\';
+      out += static_cast<char>(c);
+    } else if (c >= 0x20 && c < 0x7f) {
+      out += static_cast<char>(c);
+    } else {
+      static constexpr char kHex[] = "0123456789abcdef";
+      out += "\\x";
+      out += kHex[c >> 4];
+      out += kHex[c & 15];
+    }
+  }
+  if (s.size() > kMax) out += "...";
+  out += quote;
+  return out;
+}
+
+/// "a number", "a string \"x\"", ... for "got ..." in messages.
+std::string describe(const json& v) {
+  switch (v.type()) {
+    case json::value_t::null:
+      return "null";
+    case json::value_t::boolean:
+      return v.get<bool>() ? "true" : "false";
+    case json::value_t::number_integer:
+      return std::to_string(v.get<std::int64_t>());
+    case json::value_t::number_unsigned:
+      return std::to_string(v.get<std::uint64_t>());
+    case json::value_t::number_float:
+      return num_str(v.get<double>());
+    case json::value_t::string:
+      return "string " + quote_text(v.get_ref<const std::string&>(), '"');
+    case json::value_t::array:
+      return "an array";
+    case json::value_t::object:
+      return "an object";
+    default:
+      return "an unsupported value";
+  }
+}
+
+std::string join_key(std::string_view path, std::string_view key) {
+  std::string out(path);
+  if (!out.empty()) out += '.';
+  out += key;
+  return out;
+}
+
+std::string join_index(std::string_view path, std::size_t index) {
+  std::string out(path);
+  out += '[';
+  append_int(out, index);
+  out += ']';
+  return out;
+}
+
+// ---------------------------------------------------------------------------
+// Step 1: a DOM with lines.
+
+/// Where the lexer is: lines of the characters consumed so far.
+struct LineCounter {
+  int line = 1;         ///< Line of the next character.
+  int column = 0;       ///< Characters consumed on the current line.
+  int token_line = 1;   ///< Line of the last non-whitespace character consumed.
+  int token_column = 1; ///< Its 1-based column (bytes).
+};
+
+/// A char iterator over [p, end) that reports every consumed character to a
+/// LineCounter. nlohmann's iterator_input_adapter reads a character with
+/// `*current` and then `std::advance(current, 1)`, so counting in operator++
+/// counts exactly the characters the lexer has taken. The lexer's one-character
+/// lookahead after a number is ungot inside the lexer, not in the input, so it
+/// is counted; it is either adjacent to the number (same line) or whitespace,
+/// which is why callbacks use the line of the last non-whitespace character:
+/// that is always a character of the token just completed.
+class CountingIterator {
+ public:
+  using iterator_category = std::input_iterator_tag;
+  using value_type = char;
+  using difference_type = std::ptrdiff_t;
+  using pointer = const char*;
+  using reference = const char&;
+
+  CountingIterator() = default;
+  CountingIterator(const char* p, LineCounter* counter) : p_(p), counter_(counter) {}
+
+  reference operator*() const { return *p_; }
+  CountingIterator& operator++() {
+    const char c = *p_;
+    if (c == '\n') {
+      ++counter_->line;
+      counter_->column = 0;
+    } else {
+      ++counter_->column;
+      if (c != ' ' && c != '\t' && c != '\r') {
+        counter_->token_line = counter_->line;
+        counter_->token_column = counter_->column;
+      }
+    }
+    ++p_;
+    return *this;
+  }
+  CountingIterator operator++(int) {
+    CountingIterator old = *this;
+    ++*this;
+    return old;
+  }
+  friend bool operator==(const CountingIterator& a, const CountingIterator& b) {
+    return a.p_ == b.p_;
+  }
+  friend bool operator!=(const CountingIterator& a, const CountingIterator& b) {
+    return a.p_ != b.p_;
+  }
+
+ private:
+  const char* p_ = nullptr;
+  LineCounter* counter_ = nullptr;
+};
+
+/// SAX handler that follows field paths through a document and stops at the
+/// first key or array element whose path is `target`, noting its line.
+class LineFinder {
+ public:
+  using number_integer_t = json::number_integer_t;
+  using number_unsigned_t = json::number_unsigned_t;
+  using number_float_t = json::number_float_t;
+  using string_t = json::string_t;
+  using binary_t = json::binary_t;
+
+  LineFinder(const LineCounter* counter, const std::string* target)
+      : counter_(counter), target_(target) {}
+
+  bool null() { return value(false, false); }
+  bool boolean(bool /*v*/) { return value(false, false); }
+  bool number_integer(number_integer_t /*v*/) { return value(false, false); }
+  bool number_unsigned(number_unsigned_t /*v*/) { return value(false, false); }
+  bool number_float(number_float_t /*v*/, const string_t& /*text*/) { return value(false, false); }
+  bool string(string_t& /*v*/) { return value(false, false); }
+  bool binary(binary_t& /*v*/) { return false; }
+  bool start_object(std::size_t /*elements*/) { return value(true, false); }
+  bool start_array(std::size_t /*elements*/) { return value(true, true); }
+  bool key(string_t& k) {
+    path_.resize(stack_.back().path_len);
+    if (!path_.empty()) path_ += '.';
+    path_ += k;
+    return !match();
+  }
+  bool end_object() {
+    stack_.pop_back();
+    return true;
+  }
+  bool end_array() {
+    stack_.pop_back();
+    return true;
+  }
+  bool parse_error(std::size_t /*position*/, const std::string& /*token*/,
+                   const json::exception& /*ex*/) {
+    return false;
+  }
+
+  int line() const { return line_; }
+
+ private:
+  struct Level {
+    std::size_t path_len;
+    std::size_t index;
+    bool is_array;
+  };
+
+  bool match() {
+    if (path_ != *target_) return false;
+    line_ = counter_->token_line;
+    return true;
+  }
+
+  /// A value starts; members got their path from key(), elements get it here.
+  bool value(bool container, bool array) {
+    if (stack_.empty()) {
+      path_.clear();
+    } else if (stack_.back().is_array) {
+      Level& top = stack_.back();
+      path_.resize(top.path_len);
+      path_ += '[';
+      append_int(path_, top.index);
+      path_ += ']';
+      ++top.index;
+    }
+    if (match()) return false;
+    if (container) stack_.push_back(Level{path_.size(), 0, array});
+    return true;
+  }
+
+  const LineCounter* counter_;
+  const std::string* target_;
+  std::vector<Level> stack_;
+  std::string path_;
+  int line_ = 0;
+};
+
+/// Line of the first key or array element of `text` with field path `path`
+/// ("" is the document itself); 0 when there is none.
+int find_line(std::string_view text, const std::string& path) {
+  LineCounter counter;
+  LineFinder finder(&counter, &path);
+  const CountingIterator first(text.data(), &counter);
+  const CountingIterator last(text.data() + text.size(), &counter);
+  json::sax_parse(first, last, &finder, json::input_format_t::json, /*strict=*/false,
+                  /*ignore_comments=*/false);
+  return finder.line();
+}
+
+/// Line of `path`, or of its nearest parent that has one; 1 when none has.
+int line_of_path(std::string_view text, std::string path) {
+  for (;;) {
+    const int line = find_line(text, path);
+    if (line > 0) return line;
+    if (path.empty()) return 1;
+    // Strip the last component: "a.b[2]" -> "a.b" -> "a" -> "".
+    const std::size_t cut = path.find_last_of(".[");
+    path.resize(cut == std::string::npos ? 0 : cut);
+  }
+}
+
+/// SAX handler building a json DOM, tracking field paths, refusing duplicate keys.
+class DomBuilder {
+ public:
+  using number_integer_t = json::number_integer_t;
+  using number_unsigned_t = json::number_unsigned_t;
+  using number_float_t = json::number_float_t;
+  using string_t = json::string_t;
+  using binary_t = json::binary_t;
+
+  /// `text` is the whole input; with `want_lines`, a duplicate key's message
+  /// names the line of its first occurrence.
+  DomBuilder(json* root, const LineCounter* counter, std::string_view text, bool want_lines)
+      : root_(root), counter_(counter), text_(text), want_lines_(want_lines) {}
+
+  bool null() { return place(json(nullptr)) != nullptr; }
+  bool boolean(bool v) { return place(json(v)) != nullptr; }
+  bool number_integer(number_integer_t v) { return place(json(v)) != nullptr; }
+  bool number_unsigned(number_unsigned_t v) { return place(json(v)) != nullptr; }
+  bool number_float(number_float_t v, const string_t& /*text*/) {
+    // The parser refuses non-finite results (error 406) before calling us.
+    return place(json(v)) != nullptr;
+  }
+  bool string(string_t& v) { return place(json(std::move(v))) != nullptr; }
+  bool binary(binary_t& /*v*/) { return fail(path_, "binary values are not JSON"); }
+
+  bool start_object(std::size_t /*elements*/) {
+    json* slot = place(json(json::value_t::object));
+    return slot != nullptr && push(slot);
+  }
+  bool key(string_t& k) {
+    Level& top = stack_.back();
+    path_.resize(top.path_len);
+    if (!path_.empty()) path_ += '.';
+    path_ += k;
+    if (top.value->contains(k)) {
+      const int first = want_lines_ ? find_line(text_, path_) : 0;
+      std::string msg = "duplicate key " + quote_text(k);
+      if (first > 0) msg += ", first at line " + std::to_string(first);
+      path_.resize(top.path_len);
+      return fail(path_, msg);
+    }
+    pending_key_ = std::move(k);
+    return true;
+  }
+  bool end_object() {
+    stack_.pop_back();
+    return true;
+  }
+  bool start_array(std::size_t /*elements*/) {
+    json* slot = place(json(json::value_t::array));
+    return slot != nullptr && push(slot);
+  }
+  bool end_array() {
+    stack_.pop_back();
+    return true;
+  }
+
+  bool parse_error(std::size_t /*position*/, const std::string& last_token,
+                   const json::exception& ex) {
+    failed_ = true;
+    error_line_ = counter_->token_line;
+    if (ex.id == 406) {
+      // Number overflow: the only way to write an infinity in JSON.
+      error_field_ = pending_field();
+      error_message_ = "number " + quote_text(last_token) +
+                       " is out of range: numbers must be finite (and at most " +
+                       num_str(kMaxCoordinate) + " in magnitude for coordinates)";
+      return false;
+    }
+    std::string what = ex.what();
+    // "[json.exception.parse_error.101] parse error at line 1, column 9: syntax error ..."
+    const std::size_t col = what.find("column ");
+    std::size_t start = std::string::npos;
+    if (col != std::string::npos) start = what.find(": ", col);
+    if (start == std::string::npos) start = what.find("] ");
+    if (start != std::string::npos) what.erase(0, start + 2);
+    error_message_ = "malformed JSON (column " + std::to_string(counter_->token_column) + "): " + what;
+    return false;
+  }
+
+  bool failed() const { return failed_; }
+  int error_line() const { return error_line_; }
+  const std::string& error_field() const { return error_field_; }
+  const std::string& error_message() const { return error_message_; }
+
+ private:
+  struct Level {
+    json* value;
+    std::size_t path_len;  ///< Length of this container's path in path_.
+    std::size_t index;     ///< Next element index (arrays).
+  };
+
+  bool fail(const std::string& field, std::string message) {
+    failed_ = true;
+    error_line_ = counter_->token_line;
+    error_field_ = field;
+    error_message_ = std::move(message);
+    return false;
+  }
+
+
+  /// Path of the value the parser is about to deliver.
+  std::string pending_field() const {
+    if (stack_.empty()) return {};
+    const Level& top = stack_.back();
+    if (top.value->is_array()) return join_index(path_.substr(0, top.path_len), top.index);
+    return path_;
+  }
+
+  /// Stores a new value where the parser is; returns its address.
+  json* place(json&& v) {
+    if (stack_.empty()) {
+      *root_ = std::move(v);
+      path_.clear();
+      return root_;
+    }
+    Level& top = stack_.back();
+    if (top.value->is_array()) {
+      path_.resize(top.path_len);
+      path_ += '[';
+      append_int(path_, top.index);
+      path_ += ']';
+      ++top.index;
+      top.value->push_back(std::move(v));
+      return &top.value->back();
+    }
+    json& slot = (*top.value)[pending_key_];
+    slot = std::move(v);
+    return &slot;
+  }
+
+  bool push(json* container) {
+    if (stack_.size() >= kMaxDepth) {
+      return fail("", "nesting deeper than " + std::to_string(kMaxDepth) + " levels");
+    }
+    stack_.push_back(Level{container, path_.size(), 0});
+    return true;
+  }
+
+  json* root_;
+  const LineCounter* counter_;
+  std::string_view text_;
+  bool want_lines_;
+  std::vector<Level> stack_;
+  std::string path_;
+  std::string pending_key_;
+  bool failed_ = false;
+  int error_line_ = 0;
+  std::string error_field_;
+  std::string error_message_;
+};
+
+/// Parses `text` into `root`. With `want_lines`, duplicate-key messages name
+/// the line of the first occurrence.
+bool parse_dom(std::string_view text, json* root, bool want_lines, int* error_line,
+               std::string* error_field, std::string* error_message) {
+  LineCounter counter;
+  DomBuilder builder(root, &counter, text, want_lines);
+  const CountingIterator first(text.data(), &counter);
+  const CountingIterator last(text.data() + text.size(), &counter);
+  const bool ok = json::sax_parse(first, last, &builder, json::input_format_t::json,
+                                  /*strict=*/true, /*ignore_comments=*/false);
+  if (ok && !builder.failed()) return true;
+  if (builder.failed()) {
+    *error_line = builder.error_line();
+    *error_field = builder.error_field();
+    *error_message = builder.error_message();
+  } else {
+    *error_line = counter.token_line;
+    error_field->clear();
+    *error_message = "malformed JSON";
+  }
+  return false;
+}
+
+// ---------------------------------------------------------------------------
+// Step 2: validation of the DOM.
+
+/// Where errors go and how paths become lines.
+class Checker {
+ public:
+  /// For a multi-line document (`text` not empty) lines are looked up by
+  /// path; otherwise every error is on `fixed_line`.
+  Checker(std::string_view source, std::string_view text, int fixed_line, FormatError* error)
+      : source_(source), text_(text), fixed_line_(fixed_line), error_(error) {}
+
+  /// Records an error for `field`, at the line of `line_path` (default: field).
+  bool fail(const std::string& field, std::string message, const std::string* line_path = nullptr) {
+    if (error_ != nullptr) {
+      error_->source = std::string(source_);
+      error_->line = line_of(line_path != nullptr ? *line_path : field);
+      error_->field = field;
+      error_->message = std::move(message);
+    }
+    return false;
+  }
+
+  int line_of(const std::string& path) const {
+    return text_.empty() ? fixed_line_ : line_of_path(text_, path);
+  }
+
+  bool object(const json& v, const std::string& path) {
+    if (v.is_object()) return true;
+    return fail(path, "must be an object, got " + describe(v));
+  }
+
+  /// Rejects keys outside `allowed` (listed in the message).
+  bool known_keys(const json& obj, const std::string& path,
+                  std::initializer_list<std::string_view> allowed) {
+    for (const auto& item : obj.items()) {
+      const std::string& k = item.key();
+      if (std::find(allowed.begin(), allowed.end(), std::string_view(k)) != allowed.end()) continue;
+      std::string list;
+      for (const std::string_view a : allowed) {
+        if (!list.empty()) list += ", ";
+        list += a;
+      }
+      const std::string key_path = join_key(path, k);
+      return fail(path, "unknown key " + quote_text(k) + " (allowed: " + list + ")", &key_path);
+    }
+    return true;
+  }
+
+  /// The member `key` of `obj`, or an error naming it.
+  const json* require(const json& obj, const std::string& path, const char* key,
+                      std::string_view hint = {}) {
+    const auto it = obj.find(key);
+    if (it != obj.end()) return &*it;
+    std::string msg = "missing required key " + quote_text(key);
+    if (!hint.empty()) msg += " (" + std::string(hint) + ")";
+    fail(path, std::move(msg));
+    return nullptr;
+  }
+
+  bool number(const json& v, const std::string& path, double* out) {
+    if (!v.is_number()) return fail(path, "must be a number, got " + describe(v));
+    const double d = v.get<double>();
+    if (!std::isfinite(d)) return fail(path, "must be finite, got " + num_str(d));
+    *out = d;
+    return true;
+  }
+
+  bool coordinate(const json& v, const std::string& path, double* out) {
+    if (!number(v, path, out)) return false;
+    if (std::fabs(*out) > kMaxCoordinate) {
+      return fail(path, "magnitude must be at most " + num_str(kMaxCoordinate) + ", got " +
+                            num_str(*out));
+    }
+    return true;
+  }
+
+  bool vec3(const json& v, const std::string& path, Vec3* out) {
+    if (!v.is_array()) return fail(path, "must be an array of 3 numbers, got " + describe(v));
+    if (v.size() != 3) {
+      return fail(path, "must be an array of 3 numbers, got " + std::to_string(v.size()) +
+                            (v.size() == 1 ? " element" : " elements"));
+    }
+    for (std::size_t i = 0; i < 3; ++i) {
+      double d = 0.0;
+      if (!coordinate(v[i], join_index(path, i), &d)) return false;
+      (*out)[static_cast<glm::length_t>(i)] = d;
+    }
+    return true;
+  }
+
+  /// An integral value in [lo, hi] (integral floats like 7.0 count).
+  bool integer(const json& v, const std::string& path, double lo, double hi, double* out,
+               const char* what) {
+    double d = 0.0;
+    bool integral = false;
+    if (v.is_number_unsigned()) {
+      // Rounding to double is monotonic, so range checks on d stay exact
+      // for the bounds used here (integers below 2^53).
+      d = static_cast<double>(v.get<std::uint64_t>());
+      integral = true;
+    } else if (v.is_number_integer()) {
+      d = static_cast<double>(v.get<std::int64_t>());
+      integral = true;
+    } else if (v.is_number_float()) {
+      d = v.get<double>();
+      integral = std::isfinite(d) && std::trunc(d) == d;
+    }
+    if (!v.is_number() || !integral || d < lo || d > hi) {
+      return fail(path, std::string("must be ") + what + ", got " + describe(v));
+    }
+    *out = d;
+    return true;
+  }
+
+  bool id(const json& v, const std::string& path, ObjectId* out) {
+    double d = 0.0;
+    if (!integer(v, path, 0.0, kMaxId, &d, "an integer in [0, 4294967295]")) return false;
+    *out = static_cast<ObjectId>(d);
+    return true;
+  }
+
+  bool boolean(const json& v, const std::string& path, bool* out) {
+    if (!v.is_boolean()) return fail(path, "must be true or false, got " + describe(v));
+    *out = v.get<bool>();
+    return true;
+  }
+
+ private:
+  std::string_view source_;
+  std::string_view text_;
+  int fixed_line_;
+  FormatError* error_;
+};
+
+const char* axis_name(int axis) { return axis == 0 ? "x" : (axis == 1 ? "y" : "z"); }
+
+bool parse_object(Checker& ck, const json& v, const std::string& path, ObjectDesc* out) {
+  if (!ck.object(v, path)) return false;
+  if (!ck.known_keys(v, path, {"id", "shape", "center", "radius", "min", "max", "dynamic",
+                               "max_speed"})) {
+    return false;
+  }
+  ObjectDesc obj;
+  const json* id = ck.require(v, path, "id");
+  if (id == nullptr || !ck.id(*id, join_key(path, "id"), &obj.id)) return false;
+
+  const json* shape = ck.require(v, path, "shape", "\"sphere\" or \"box\"");
+  if (shape == nullptr) return false;
+  const std::string shape_path = join_key(path, "shape");
+  if (!shape->is_string()) {
+    return ck.fail(shape_path, "must be \"sphere\" or \"box\", got " + describe(*shape));
+  }
+  const std::string& shape_name = shape->get_ref<const std::string&>();
+  if (shape_name == "sphere") {
+    obj.shape = Shape::Sphere;
+    for (const char* k : {"min", "max"}) {
+      if (v.contains(k)) {
+        const std::string kp = join_key(path, k);
+        return ck.fail(path, "key " + quote_text(k) + " is not allowed for a sphere (boxes only)", &kp);
+      }
+    }
+    const json* center = ck.require(v, path, "center");
+    if (center == nullptr || !ck.vec3(*center, join_key(path, "center"), &obj.center)) return false;
+    const json* radius = ck.require(v, path, "radius");
+    if (radius == nullptr) return false;
+    const std::string rp = join_key(path, "radius");
+    if (!ck.number(*radius, rp, &obj.radius)) return false;
+    if (!(obj.radius > 0.0)) return ck.fail(rp, "must be > 0, got " + num_str(obj.radius));
+    if (obj.radius > kMaxCoordinate) {
+      return ck.fail(rp, "must be at most " + num_str(kMaxCoordinate) + ", got " +
+                             num_str(obj.radius));
+    }
+  } else if (shape_name == "box") {
+    obj.shape = Shape::Box;
+    for (const char* k : {"center", "radius"}) {
+      if (v.contains(k)) {
+        const std::string kp = join_key(path, k);
+        return ck.fail(path,
+                       "key " + quote_text(k) + " is not allowed for a box (give \"min\" and \"max\")",
+                       &kp);
+      }
+    }
+    Vec3 lo{0.0}, hi{0.0};
+    const json* jmin = ck.require(v, path, "min");
+    if (jmin == nullptr || !ck.vec3(*jmin, join_key(path, "min"), &lo)) return false;
+    const json* jmax = ck.require(v, path, "max");
+    if (jmax == nullptr || !ck.vec3(*jmax, join_key(path, "max"), &hi)) return false;
+    for (int a = 0; a < 3; ++a) {
+      if (lo[a] > hi[a]) {
+        return ck.fail(join_key(path, "max"),
+                       std::string("must be >= min on every axis, got max.") + axis_name(a) +
+                           " = " + num_str(hi[a]) + " < min." + axis_name(a) + " = " +
+                           num_str(lo[a]));
+      }
+    }
+    obj.center = (lo + hi) * 0.5;
+    obj.half_extent = (hi - lo) * 0.5;
+  } else {
+    return ck.fail(shape_path,
+                   "unknown shape " + quote_text(shape_name, '"') + " (expected \"sphere\" or \"box\")");
+  }
+
+  const auto dyn = v.find("dynamic");
+  if (dyn != v.end() && !ck.boolean(*dyn, join_key(path, "dynamic"), &obj.dynamic)) return false;
+  const auto speed = v.find("max_speed");
+  const std::string sp = join_key(path, "max_speed");
+  if (obj.dynamic) {
+    if (speed == v.end()) {
+      return ck.fail(path, "dynamic objects need max_speed (world units per second)");
+    }
+    if (!ck.number(*speed, sp, &obj.max_speed)) return false;
+    if (!(obj.max_speed >= 0.0)) return ck.fail(sp, "must be >= 0, got " + num_str(obj.max_speed));
+    if (obj.max_speed > kMaxCoordinate) {
+      return ck.fail(sp, "must be at most " + num_str(kMaxCoordinate) + ", got " +
+                             num_str(obj.max_speed));
+    }
+  } else if (speed != v.end()) {
+    return ck.fail(sp, "is only allowed with \"dynamic\": true");
+  }
+  *out = obj;
+  return true;
+}
+
+bool parse_scene_dom(Checker& ck, const json& root, SceneDesc* out) {
+  const std::string top;
+  if (!root.is_object()) {
+    return ck.fail(top, "a scene must be a JSON object {\"format\": \"voxvis-scene/1\", ...}, got " +
+                            describe(root));
+  }
+  const json* format = ck.require(root, top, "format", "expected \"voxvis-scene/1\"");
+  if (format == nullptr) return false;
+  if (!format->is_string() || format->get_ref<const std::string&>() != kSceneFormat) {
+    return ck.fail("format", "unsupported format " + describe(*format) +
+                                 ", expected \"voxvis-scene/1\"");
+  }
+  if (!ck.known_keys(root, top, {"format", "bounds", "grid", "objects"})) return false;
+
+  SceneDesc desc;
+  const json* bounds = ck.require(root, top, "bounds", "{\"min\": [x,y,z], \"max\": [x,y,z]}");
+  if (bounds == nullptr || !ck.object(*bounds, "bounds")) return false;
+  if (!ck.known_keys(*bounds, "bounds", {"min", "max"})) return false;
+  const json* bmin = ck.require(*bounds, "bounds", "min");
+  if (bmin == nullptr || !ck.vec3(*bmin, "bounds.min", &desc.bounds_min)) return false;
+  const json* bmax = ck.require(*bounds, "bounds", "max");
+  if (bmax == nullptr || !ck.vec3(*bmax, "bounds.max", &desc.bounds_max)) return false;
+  for (int a = 0; a < 3; ++a) {
+    if (!(desc.bounds_min[a] < desc.bounds_max[a])) {
+      return ck.fail("bounds.max", std::string("must be > min on every axis, got max.") +
+                                       axis_name(a) + " = " + num_str(desc.bounds_max[a]) +
+                                       " <= min." + axis_name(a) + " = " +
+                                       num_str(desc.bounds_min[a]));
+    }
+  }
+
+  const auto grid = root.find("grid");
+  if (grid != root.end()) {
+    if (!grid->is_array() || grid->size() != 3) {
+      return ck.fail("grid", "must be an array of 3 integers [nx, ny, nz], got " +
+                                 (grid->is_array() ? std::to_string(grid->size()) + " elements"
+                                                   : describe(*grid)));
+    }
+    glm::ivec3 res{1};
+    for (std::size_t i = 0; i < 3; ++i) {
+      const std::string gp = join_index("grid", i);
+      double d = 0.0;
+      if (!ck.integer((*grid)[i], gp, 1.0, std::numeric_limits<double>::infinity(), &d,
+                      "an integer >= 1 (voxels along the axis)")) {
+        return false;
+      }
+      if (d > kMaxGridPerAxis) {
+        return ck.fail(gp, "must be at most " + std::to_string(kMaxGridPerAxis) +
+                               " voxels per axis, got " + describe((*grid)[i]));
+      }
+      res[static_cast<glm::length_t>(i)] = static_cast<int>(d);
+    }
+    desc.grid = res;
+  }
+
+  const json* objects = ck.require(root, top, "objects", "an array, possibly empty");
+  if (objects == nullptr) return false;
+  if (!objects->is_array()) return ck.fail("objects", "must be an array, got " + describe(*objects));
+  desc.objects.reserve(objects->size());
+  std::unordered_map<ObjectId, std::size_t> seen;
+  seen.reserve(objects->size());
+  for (std::size_t i = 0; i < objects->size(); ++i) {
+    const std::string path = join_index("objects", i);
+    ObjectDesc obj;
+    if (!parse_object(ck, (*objects)[i], path, &obj)) return false;
+    const auto [it, inserted] = seen.emplace(obj.id, i);
+    if (!inserted) {
+      return ck.fail(join_key(path, "id"),
+                     "duplicate id " + std::to_string(obj.id) + ", first at line " +
+                         std::to_string(ck.line_of(join_key(join_index("objects", it->second), "id"))) +
+                         " (objects[" + std::to_string(it->second) + "])");
+    }
+    desc.objects.push_back(obj);
+  }
+  *out = std::move(desc);
+  return true;
+}
+
+bool parse_frame_dom(Checker& ck, const json& root, FrameInput* out) {
+  const std::string top;
+  if (!root.is_object()) {
+    return ck.fail(top, "a frame must be a JSON object {\"t\": ..., \"eye\": ..., ...}, got " +
+                            describe(root));
+  }
+  if (!ck.known_keys(root, top, {"t", "eye", "dir", "up", "fov_y_deg", "aspect", "near", "far",
+                                 "moves"})) {
+    return false;
+  }
+  FrameInput frame;
+  Camera& cam = frame.camera;
+  const json* v = nullptr;
+  if ((v = ck.require(root, top, "t", "seconds")) == nullptr || !ck.number(*v, "t", &frame.t)) {
+    return false;
+  }
+  struct Vec3Field {
+    const char* key;
+    Vec3* dst;
+  };
+  for (const Vec3Field& f : {Vec3Field{"eye", &cam.eye}, Vec3Field{"dir", &cam.dir},
+                             Vec3Field{"up", &cam.up}}) {
+    if ((v = ck.require(root, top, f.key)) == nullptr || !ck.vec3(*v, f.key, f.dst)) return false;
+  }
+  struct NumField {
+    const char* key;
+    double* dst;
+  };
+  for (const NumField& f : {NumField{"fov_y_deg", &cam.fov_y_deg}, NumField{"aspect", &cam.aspect},
+                            NumField{"near", &cam.near}, NumField{"far", &cam.far}}) {
+    if ((v = ck.require(root, top, f.key)) == nullptr || !ck.number(*v, f.key, f.dst)) return false;
+  }
+  const Status cam_status = validate_camera(cam);
+  if (!cam_status.ok) return ck.fail(cam_status.field, cam_status.message);
+
+  const auto moves = root.find("moves");
+  if (moves != root.end()) {
+    if (!moves->is_array()) return ck.fail("moves", "must be an array, got " + describe(*moves));
+    frame.moves.reserve(moves->size());
+    std::unordered_map<ObjectId, std::size_t> seen;
+    for (std::size_t i = 0; i < moves->size(); ++i) {
+      const std::string path = join_index("moves", i);
+      const json& m = (*moves)[i];
+      if (!ck.object(m, path) || !ck.known_keys(m, path, {"id", "center"})) return false;
+      Move move;
+      if ((v = ck.require(m, path, "id")) == nullptr || !ck.id(*v, join_key(path, "id"), &move.id)) {
+        return false;
+      }
+      if ((v = ck.require(m, path, "center")) == nullptr ||
+          !ck.vec3(*v, join_key(path, "center"), &move.center)) {
+        return false;
+      }
+      const auto [it, inserted] = seen.emplace(move.id, i);
+      if (!inserted) {
+        return ck.fail(join_key(path, "id"), "duplicate id " + std::to_string(move.id) +
+                                                 " in this frame's moves (also moves[" +
+                                                 std::to_string(it->second) + "])");
+      }
+      frame.moves.push_back(move);
+    }
+  }
+  *out = std::move(frame);
+  return true;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------
+// Public entry points.
+
+bool parse_scene(std::string_view text, std::string_view source, SceneDesc* out,
+                 FormatError* error) {
+  try {
+    json root;
+    int line = 0;
+    std::string field, message;
+    if (!parse_dom(text, &root, /*want_lines=*/true, &line, &field, &message)) {
+      if (error != nullptr) *error = FormatError{std::string(source), line, field, message};
+      return false;
+    }
+    Checker ck(source, text, 0, error);
+    SceneDesc desc;
+    if (!parse_scene_dom(ck, root, &desc)) return false;
+    if (out != nullptr) *out = std::move(desc);
+    return true;
+  } catch (const std::exception& e) {
+    // Only resource exhaustion can get here (std::bad_alloc and the like).
+    if (error != nullptr) {
+      *error = FormatError{std::string(source), 0, "", std::string("cannot parse: ") + e.what()};
+    }
+    return false;
+  }
+}
+
+bool parse_frame_line(std::string_view text, std::string_view source, int line, FrameInput* out,
+                      FormatError* error) {
+  try {
+    if (text.find_first_not_of(" \t\r\n") == std::string_view::npos) {
+      if (error != nullptr) {
+        *error = FormatError{std::string(source), line, "", "empty line (expected a frame object)"};
+      }
+      return false;
+    }
+    json root;
+    int err_line = 0;
+    std::string field, message;
+    if (!parse_dom(text, &root, /*want_lines=*/false, &err_line, &field, &message)) {
+      if (error != nullptr) *error = FormatError{std::string(source), line, field, message};
+      return false;
+    }
+    Checker ck(source, std::string_view{}, line, error);
+    FrameInput frame;
+    if (!parse_frame_dom(ck, root, &frame)) return false;
+    frame.line = line;
+    if (out != nullptr) *out = std::move(frame);
+    return true;
+  } catch (const std::exception& e) {
+    if (error != nullptr) {
+      *error = FormatError{std::string(source), line, "", std::string("cannot parse: ") + e.what()};
+    }
+    return false;
+  }
+}
+
+std::string scene_to_json(const SceneDesc& scene) {
+  std::string out;
+  out.reserve(128 + scene.objects.size() * 96);
+  out += "{\n  \"format\": \"voxvis-scene/1\",\n  \"bounds\": {\"min\": ";
+  append_vec3(out, scene.bounds_min);
+  out += ", \"max\": ";
+  append_vec3(out, scene.bounds_max);
+  out += "},\n";
+  if (scene.grid) {
+    out += "  \"grid\": [";
+    append_int(out, scene.grid->x);
+    out += ", ";
+    append_int(out, scene.grid->y);
+    out += ", ";
+    append_int(out, scene.grid->z);
+    out += "],\n";
+  }
+  out += "  \"objects\": [";
+  bool first = true;
+  for (const ObjectDesc& o : scene.objects) {
+    out += first ? "\n    " : ",\n    ";
+    first = false;
+    out += "{\"id\": ";
+    append_int(out, o.id);
+    if (o.shape == Shape::Box) {
+      out += ", \"shape\": \"box\", \"min\": ";
+      append_vec3(out, o.center - o.half_extent);
+      out += ", \"max\": ";
+      append_vec3(out, o.center + o.half_extent);
+    } else {
+      out += ", \"shape\": \"sphere\", \"center\": ";
+      append_vec3(out, o.center);
+      out += ", \"radius\": ";
+      append_number(out, o.radius);
+    }
+    if (o.dynamic) {
+      out += ", \"dynamic\": true, \"max_speed\": ";
+      append_number(out, o.max_speed);
+    }
+    out += '}';
+  }
+  out += first ? "]\n}\n" : "\n  ]\n}\n";
+  return out;
+}
+
+std::string frame_to_json(const FrameInput& frame) {
+  std::string out;
+  out.reserve(256 + frame.moves.size() * 64);
+  const Camera& c = frame.camera;
+  out += "{\"t\": ";
+  append_number(out, frame.t);
+  out += ", \"eye\": ";
+  append_vec3(out, c.eye);
+  out += ", \"dir\": ";
+  append_vec3(out, c.dir);
+  out += ", \"up\": ";
+  append_vec3(out, c.up);
+  out += ", \"fov_y_deg\": ";
+  append_number(out, c.fov_y_deg);
+  out += ", \"aspect\": ";
+  append_number(out, c.aspect);
+  out += ", \"near\": ";
+  append_number(out, c.near);
+  out += ", \"far\": ";
+  append_number(out, c.far);
+  if (!frame.moves.empty()) {
+    out += ", \"moves\": [";
+    bool first = true;
+    for (const Move& m : frame.moves) {
+      if (!first) out += ", ";
+      first = false;
+      out += "{\"id\": ";
+      append_int(out, m.id);
+      out += ", \"center\": ";
+      append_vec3(out, m.center);
+      out += '}';
+    }
+    out += ']';
+  }
+  out += '}';
+  return out;
+}
+
+std::string result_to_json(std::size_t frame_index, const FrameResult& result) {
+  std::string out;
+  out.reserve(320 + (result.pvs.size() + result.wake.size()) * 8);
+  const auto ids = [&out](const char* name, const std::vector<ObjectId>& v) {
+    out += name;
+    out += '[';
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      if (i > 0) out += ',';
+      append_int(out, v[i]);
+    }
+    out += ']';
+  };
+  const FrameStats& s = result.stats;
+  out += "{\"frame\":";
+  append_int(out, frame_index);
+  ids(",\"pvs\":", result.pvs);
+  ids(",\"wake\":", result.wake);
+  out += ",\"stats\":{\"time_us\":";
+  {
+    const double t = std::isfinite(s.time_us) ? s.time_us : 0.0;
+    char buf[64];
+    const auto r = std::to_chars(buf, buf + sizeof buf, t, std::chars_format::fixed, 3);
+    out.append(buf, r.ptr);
+  }
+  const auto count = [&out](const char* name, std::uint64_t v) {
+    out += ",\"";
+    out += name;
+    out += "\":";
+    append_int(out, v);
+  };
+  count("voxels_visited", s.voxels_visited);
+  count("shells", s.shells);
+  count("objects_discretized", s.objects_discretized);
+  count("tbvs_created", s.tbvs_created);
+  count("tbvs_revealed", s.tbvs_revealed);
+  count("tbvs_expired", s.tbvs_expired);
+  count("tbvs_active", s.tbvs_active);
+  count("speed_violations", s.speed_violations);
+  count("outside_tested", s.outside_tested);
+  count("pvs_size", s.pvs_size);
+  out += ",\"early_exit\":";
+  out += s.early_exit ? "true" : "false";
+  out += "}}";
+  return out;
+}
+
+}  // namespace voxvis
