@@ -128,8 +128,6 @@ int run_replay(const ReplayArgs& args) {
   if (!read_file(args.scene, &text, &error)) return report(error);
   SceneDesc desc;
   if (!parse_scene(text, args.scene, &desc, &error)) return report(error);
-  text.clear();
-  text.shrink_to_fit();
 
   SceneOptions options;
   if (args.tbv_period) options.tbv_period = *args.tbv_period;
@@ -155,9 +153,14 @@ int run_replay(const ReplayArgs& args) {
   if (const Status st = Scene::create(desc, options, &scene); !st.ok) {
     std::string what = st.message;
     if (!args.grid.empty() && st.field.rfind("grid", 0) == 0) what += " (resolution from --grid)";
-    return report(FormatError{args.scene, 0, st.field, what});
+    // A --grid resolution has no line in the scene file.
+    const bool from_flag = !args.grid.empty() && st.field.rfind("grid", 0) == 0;
+    const int line = from_flag || st.field.empty() ? 0 : scene_field_line(text, st.field);
+    return report(FormatError{args.scene, line, st.field, what});
   }
   if (scene == nullptr) return report(FormatError{args.scene, 0, "", "scene creation failed"});
+  text.clear();  // Kept until now so that engine errors can name a line.
+  text.shrink_to_fit();
   const ViewerId viewer = scene->add_viewer();
 
   Scratch scratch;

@@ -926,6 +926,10 @@ bool parse_frame_line(std::string_view text, std::string_view source, int line, 
   }
 }
 
+int scene_field_line(std::string_view text, std::string_view field) {
+  return line_of_path(text, std::string(field));
+}
+
 std::string scene_to_json(const SceneDesc& scene) {
   std::string out;
   out.reserve(128 + scene.objects.size() * 96);

@@ -372,6 +372,9 @@ INSTANTIATE_TEST_SUITE_P(
                  "must be an integer >= 1"},
         BadScene{"UnknownKey", scene_with("\"radius\": 1}", "\"radius\": 1, \"mass\": 3}"),
                  ":8: objects[2]: ", "unknown key 'mass'"},
+        // Refused by the engine, before allocating, on the line of the field.
+        BadScene{"TooManyVoxels", scene_with("[16, 16, 16]", "[8192, 8192, 8]"), ":4: grid: ",
+                 "exceeds the limit"},
         BadScene{"WrongFormat", scene_with("voxvis-scene/1", "voxvis-scene/9"), ":2: format: ",
                  "unsupported format"}),
     [](const auto& param_info) { return std::string(param_info.param.name); });

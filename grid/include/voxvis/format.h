@@ -40,6 +40,11 @@ struct FrameInput {
 bool parse_scene(std::string_view text, std::string_view source, SceneDesc* out,
                  FormatError* error);
 
+/// The line of field `field` (as Status::field names it, e.g.
+/// "objects[3].radius") in a scene document, or of its nearest enclosing
+/// field; 1 when none is found. Lets callers put engine errors on a line.
+int scene_field_line(std::string_view text, std::string_view field);
+
 /// Parses one frames line (without its newline). `line` is for messages.
 bool parse_frame_line(std::string_view text, std::string_view source, int line,
                       FrameInput* out, FormatError* error);
