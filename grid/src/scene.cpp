@@ -261,7 +261,10 @@ void Scene::Impl::discretize(std::uint32_t slot) {
   for (int z = vb.lo.z; z <= vb.hi.z; ++z)
     for (int y = vb.lo.y; y <= vb.hi.y; ++y)
       for (int x = vb.lo.x; x <= vb.hi.x; ++x)
-        if (contains_voxel(o, o.center, x, y, z)) ++dyn_opaque[static_cast<std::size_t>(index(x, y, z))];
+        if (contains_voxel(o, o.center, x, y, z)) {
+          const auto i = static_cast<std::size_t>(index(x, y, z));
+          if (dyn_opaque[i]++ == 0) vflags[i] |= kDynOpaque;
+        }
   if (!box_inside_grid(o.box_lo(), o.box_hi())) list_add(outside_objs, o.outside_pos, slot);
   ++pending.objects_discretized;
 }
@@ -276,7 +279,10 @@ void Scene::Impl::undiscretize(std::uint32_t slot) {
   for (int z = vb.lo.z; z <= vb.hi.z; ++z)
     for (int y = vb.lo.y; y <= vb.hi.y; ++y)
       for (int x = vb.lo.x; x <= vb.hi.x; ++x)
-        if (contains_voxel(o, c, x, y, z)) --dyn_opaque[static_cast<std::size_t>(index(x, y, z))];
+        if (contains_voxel(o, c, x, y, z)) {
+          const auto i = static_cast<std::size_t>(index(x, y, z));
+          if (--dyn_opaque[i] == 0) vflags[i] &= static_cast<std::uint8_t>(~kDynOpaque);
+        }
   list_remove(outside_objs, o.outside_pos, false);
 }
 
@@ -382,7 +388,7 @@ Status Scene::create(const SceneDesc& desc, const SceneOptions& options, std::un
   }
 
   // Static layer: count, then fill (CSR), and the opaque bits.
-  s.static_opaque.assign((nvox + 63) / 64, 0);
+  s.vflags.assign(nvox, 0);
   s.static_offsets.assign(nvox + 1, 0);
   std::uint64_t total = 0;
   for (int pass = 0; pass < 2; ++pass) {
@@ -399,7 +405,8 @@ Status Scene::create(const SceneDesc& desc, const SceneOptions& options, std::un
             if (pass == 0) {
               ++s.static_offsets[i + 1];
               ++total;
-              if (s.contains_voxel(o, o.center, x, y, z)) s.static_opaque[i >> 6] |= 1ull << (i & 63);
+              s.vflags[i] |= Impl::kStaticIds;
+              if (s.contains_voxel(o, o.center, x, y, z)) s.vflags[i] |= Impl::kStaticOpaque;
             } else {
               s.static_ids[s.static_offsets[i]++] = slot;
             }

@@ -1,10 +1,12 @@
 // scene_impl.h — the shared scene grid and per-thread scratch.
 //
 // Layout (flat arrays indexed by voxel, x fastest):
-//  * static_opaque_  1 bit a voxel: lies wholly inside a static object.
-//  * static_offsets_/static_ids_  CSR lists of the static objects touching
+//  * vflags          1 byte a voxel: wholly inside a static object, touched
+//    by a static object, wholly inside a discretized dynamic object. One
+//    byte load answers the traversal's common case, an empty voxel.
+//  * static_offsets/static_ids  CSR lists of the static objects touching
 //    each voxel; built once (paper 4.5).
-//  * dyn_opaque_     per voxel, how many discretized dynamic objects contain
+//  * dyn_opaque      per voxel, how many discretized dynamic objects contain
 //    it wholly (allocated only when the scene has dynamic objects).
 //  * bricks_         per 4x4x4 brick, the dynamic objects and TBVs touching
 //    it; an entry is (slot << 1 | is_tbv). The exact voxel test happens when
@@ -107,7 +109,8 @@ struct Scene::Impl {
   std::size_t dynamic_count = 0;
 
   // Static layer.
-  std::vector<std::uint64_t> static_opaque;
+  static constexpr std::uint8_t kStaticOpaque = 1, kStaticIds = 2, kDynOpaque = 4;
+  std::vector<std::uint8_t> vflags;
   std::vector<std::uint32_t> static_offsets;
   std::vector<std::uint32_t> static_ids;  ///< Slots.
 
@@ -145,9 +148,7 @@ struct Scene::Impl {
   std::int64_t index(int x, int y, int z) const {
     return x + std::int64_t{res.x} * (y + std::int64_t{res.y} * z);
   }
-  bool static_opaque_at(std::int64_t i) const {
-    return (static_opaque[static_cast<std::size_t>(i >> 6)] >> (i & 63)) & 1u;
-  }
+
   Vec3 to_grid(const Vec3& p) const { return (p - spec.bounds_min) * inv_vs; }
   /// Rounding allowance for an object near `mag` world units, world units.
   double slop(double mag) const;

@@ -141,7 +141,7 @@ class Traversal {
   bool table_occluded(const ExitTable& t, const std::int64_t v[3], int b, int d) const;
   bool occluded(const std::int64_t v[3], std::int64_t m, int b, int d) const;
   void visit(const std::int64_t v[3], std::int64_t m, int face, int b, int d);
-  void collect(std::int64_t idx, const std::int64_t v[3], std::int64_t m);
+  void collect(std::int64_t idx, const std::int64_t v[3], std::int64_t m, std::uint8_t flags);
   void reveal_in_frame(std::uint32_t slot, std::int64_t m);
   std::int64_t chess_from_eye(const Obj& o) const;
 
@@ -301,9 +301,11 @@ void Traversal::reveal_in_frame(std::uint32_t slot, std::int64_t m) {
   if (chess_from_eye(s_.objs[slot]) <= m) add(slot);
 }
 
-void Traversal::collect(std::int64_t idx, const std::int64_t v[3], std::int64_t m) {
+void Traversal::collect(std::int64_t idx, const std::int64_t v[3], std::int64_t m,
+                        std::uint8_t flags) {
   const auto i = static_cast<std::size_t>(idx);
-  for (std::uint32_t j = s_.static_offsets[i]; j < s_.static_offsets[i + 1]; ++j) add(s_.static_ids[j]);
+  if (flags & Scene::Impl::kStaticIds)
+    for (std::uint32_t j = s_.static_offsets[i]; j < s_.static_offsets[i + 1]; ++j) add(s_.static_ids[j]);
   if (!has_dyn_) return;
   const int gx = static_cast<int>(E_[0] + v[0]);
   const int gy = static_cast<int>(E_[1] + v[1]);
@@ -411,8 +413,8 @@ void Traversal::visit(const std::int64_t v[3], std::int64_t m, int face, int b, 
     stamp = static_cast<std::uint8_t>(tag_ | kBlocked);
     return;
   }
-  const bool opaque =
-      s_.static_opaque_at(idx) || (has_dyn_ && s_.dyn_opaque[static_cast<std::size_t>(idx)] > 0);
+  const std::uint8_t flags = s_.vflags[static_cast<std::size_t>(idx)];
+  const bool opaque = (flags & (Scene::Impl::kStaticOpaque | Scene::Impl::kDynOpaque)) != 0;
   // An opaque voxel occludes only when wholly beyond the near plane: nearer
   // geometry is clipped away by a renderer and must not hide anything.
   const bool blocking = opaque && lf_.depth_min(lo) >= lf_.near + depth_tol_;
@@ -429,7 +431,8 @@ void Traversal::visit(const std::int64_t v[3], std::int64_t m, int face, int b, 
       }
     }
   }
-  if (lf_.depth_max(lo) >= lf_.near - depth_tol_) collect(idx, v, m);
+  if ((flags & Scene::Impl::kStaticIds) == 0 && !has_dyn_) return;  // Empty: nothing to collect.
+  if (lf_.depth_max(lo) >= lf_.near - depth_tol_) collect(idx, v, m, flags);
 }
 
 void Traversal::run() {
