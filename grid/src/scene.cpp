@@ -79,6 +79,8 @@ Status validate_desc(const SceneDesc& d, const SceneOptions& opt) {
     return Status::Error("tbv_period", "must be finite and >= 0");
   if (!(opt.tbv_voxels > 0.0) || !std::isfinite(opt.tbv_voxels))
     return Status::Error("tbv_voxels", "must be finite and > 0");
+  if (!(opt.tbv_max_voxels >= opt.tbv_voxels) || !std::isfinite(opt.tbv_max_voxels))
+    return Status::Error("tbv_max_voxels", "must be finite and >= tbv_voxels");
   if (!(opt.tbv_max_period > 0.0) || !std::isfinite(opt.tbv_max_period))
     return Status::Error("tbv_max_period", "must be finite and > 0");
 
@@ -126,10 +128,12 @@ Scratch::~Scratch() = default;
 void Scratch::Impl::begin(std::size_t voxels, std::size_t objects) {
   if (stamp.size() < voxels) stamp.resize(voxels, 0);
   if (obj_mark.size() < objects) obj_mark.resize(objects, 0);
+  if (obj_seen.size() < objects) obj_seen.resize(objects, 0);
   // The frame number lives in the upper 30 bits of a stamp; start over
   // before it wraps so that no stale stamp can ever match.
   if (++frame == std::numeric_limits<std::uint32_t>::max()) {
     std::fill(obj_mark.begin(), obj_mark.end(), 0u);
+    std::fill(obj_seen.begin(), obj_seen.end(), 0u);
     frame = 1;
   }
   if (++stamp_tag == 64) {
@@ -209,32 +213,31 @@ bool Scene::Impl::box_inside_grid(const Vec3& lo, const Vec3& hi) const {
 // ---------------------------------------------------------------------------
 // Dynamic layer
 
-void Scene::Impl::brick_add(const VoxBox& vb, std::uint32_t entry) {
-  if (vb.empty()) return;
-  const glm::ivec3 lo = vb.lo >> detail::kBrickShift;
-  const glm::ivec3 hi = vb.hi >> detail::kBrickShift;
-  for (int z = lo.z; z <= hi.z; ++z)
-    for (int y = lo.y; y <= hi.y; ++y)
-      for (int x = lo.x; x <= hi.x; ++x)
-        bricks[static_cast<std::size_t>(x + bricks_res.x * (y + std::int64_t{bricks_res.y} * z))]
-            .push_back(entry);
-}
-
-void Scene::Impl::brick_remove(const VoxBox& vb, std::uint32_t entry) {
+void Scene::Impl::brick_add(const VoxBox& vb, std::uint32_t key, std::uint32_t gen) {
   if (vb.empty()) return;
   const glm::ivec3 lo = vb.lo >> detail::kBrickShift;
   const glm::ivec3 hi = vb.hi >> detail::kBrickShift;
   for (int z = lo.z; z <= hi.z; ++z)
     for (int y = lo.y; y <= hi.y; ++y)
       for (int x = lo.x; x <= hi.x; ++x) {
-        auto& list =
+        detail::Brick& br =
             bricks[static_cast<std::size_t>(x + bricks_res.x * (y + std::int64_t{bricks_res.y} * z))];
-        auto it = std::find(list.begin(), list.end(), entry);
-        if (it != list.end()) {
-          *it = list.back();
-          list.pop_back();
+        if (br.entries.size() >= 2 * std::size_t{br.live} + 16) {
+          std::erase_if(br.entries, [&](const detail::BrickEntry& e) { return !current(e); });
         }
+        br.entries.push_back({key, gen});
+        ++br.live;
       }
+}
+
+void Scene::Impl::brick_remove(const VoxBox& vb) {
+  if (vb.empty()) return;
+  const glm::ivec3 lo = vb.lo >> detail::kBrickShift;
+  const glm::ivec3 hi = vb.hi >> detail::kBrickShift;
+  for (int z = lo.z; z <= hi.z; ++z)
+    for (int y = lo.y; y <= hi.y; ++y)
+      for (int x = lo.x; x <= hi.x; ++x)
+        --bricks[static_cast<std::size_t>(x + bricks_res.x * (y + std::int64_t{bricks_res.y} * z))].live;
 }
 
 void Scene::Impl::list_add(std::vector<std::uint32_t>& list, std::int32_t& pos, std::uint32_t slot) {
@@ -257,7 +260,7 @@ void Scene::Impl::discretize(std::uint32_t slot) {
   o.disc_center = o.center;
   const double s = slop(max_abs(o.center) + o.radius + max_abs(o.half));
   const VoxBox vb = touch_range(o.box_lo(), o.box_hi(), s);
-  brick_add(vb, slot << 1);
+  brick_add(vb, slot << 1, o.disc_gen);
   for (int z = vb.lo.z; z <= vb.hi.z; ++z)
     for (int y = vb.lo.y; y <= vb.hi.y; ++y)
       for (int x = vb.lo.x; x <= vb.hi.x; ++x)
@@ -274,7 +277,8 @@ void Scene::Impl::undiscretize(std::uint32_t slot) {
   const Vec3 c = o.disc_center;
   const double s = slop(max_abs(c) + o.radius + max_abs(o.half));
   const VoxBox vb = touch_range(c - o.half, c + o.half, s);
-  brick_remove(vb, slot << 1);
+  brick_remove(vb);
+  ++o.disc_gen;  // Its brick entries are stale from now on.
   // The same predicate at the same centre finds exactly the voxels counted.
   for (int z = vb.lo.z; z <= vb.hi.z; ++z)
     for (int y = vb.lo.y; y <= vb.hi.y; ++y)
@@ -290,7 +294,17 @@ double Scene::Impl::initial_period(const Obj& o) const {
   if (options.tbv_period > 0.0) return options.tbv_period;
   if (!(o.max_speed > 0.0)) return options.tbv_max_period;
   const double vmin = std::fmin(spec.voxel_size.x, std::fmin(spec.voxel_size.y, spec.voxel_size.z));
-  return std::clamp(options.tbv_voxels * vmin / o.max_speed, 1e-3, options.tbv_max_period);
+  return std::clamp(options.tbv_voxels * vmin / o.max_speed, 1e-3, max_period(o));
+}
+
+double Scene::Impl::max_period(const Obj& o) const {
+  if (options.tbv_period > 0.0) return options.tbv_period;
+  if (!(o.max_speed > 0.0)) return options.tbv_max_period;
+  // A TBV's bricks cost grows with the cube of its size while its renewals
+  // fall only linearly with its period: beyond a few voxels of growth,
+  // longer periods cost more than they save.
+  const double vmin = std::fmin(spec.voxel_size.x, std::fmin(spec.voxel_size.y, spec.voxel_size.z));
+  return std::clamp(options.tbv_max_voxels * vmin / o.max_speed, 1e-3, options.tbv_max_period);
 }
 
 void Scene::Impl::make_tbv(std::uint32_t slot, double now) {
@@ -298,23 +312,36 @@ void Scene::Impl::make_tbv(std::uint32_t slot, double now) {
   // Every centre reachable before expiry is within max_speed * period of the
   // current one, so the object's box grown by that much bounds it (Sudarsky &
   // Gotsman's TBV, as a box since our objects are boxes and spheres).
-  const double grow = o.max_speed * o.tbv_period;
-  o.tbv_lo = o.center - o.half - grow;
-  o.tbv_hi = o.center + o.half + grow;
-  o.tbv_expiry = o.max_speed > 0.0 ? now + o.tbv_period : std::numeric_limits<double>::infinity();
+  //
+  // The period is stretched by up to 25%, differently for each object and
+  // renewal, so that TBVs created together do not all expire together.
+  std::uint64_t h = (std::uint64_t{slot} << 32) ^ o.tbv_gen ^ 0x9e3779b97f4a7c15ull;
+  h = (h ^ (h >> 30)) * 0xbf58476d1ce4e5b9ull;
+  h = (h ^ (h >> 27)) * 0x94d049bb133111ebull;
+  h ^= h >> 31;
+  const double period = o.tbv_period * (1.0 + 0.25 * static_cast<double>(h >> 11) * 0x1p-53);
+  const double grow = o.max_speed * period;
+  // Growth stops at the grid's bounds (the object's own box never shrinks):
+  // beyond them the object can only get by a move, and a move that leaves
+  // the TBV reveals it (apply_moves). So a hidden object near the boundary
+  // costs nothing per frame instead of a frustum test beyond the grid.
+  const Vec3 lo = o.center - o.half, hi = o.center + o.half;
+  o.tbv_lo = glm::min(lo, glm::max(lo - grow, spec.bounds_min));
+  o.tbv_hi = glm::max(hi, glm::min(hi + grow, spec.bounds_max));
+  o.tbv_expiry = o.max_speed > 0.0 ? now + period : std::numeric_limits<double>::infinity();
   o.under_tbv = true;
   ++o.tbv_gen;
   if (std::isfinite(o.tbv_expiry)) expiry.push({o.tbv_expiry, slot, o.tbv_gen});
   const double s = slop(std::fmax(max_abs(o.tbv_lo), max_abs(o.tbv_hi)));
   o.tbv_voxels = touch_range(o.tbv_lo, o.tbv_hi, s);
-  brick_add(o.tbv_voxels, (slot << 1) | 1u);
+  brick_add(o.tbv_voxels, (slot << 1) | 1u, o.tbv_gen);
   if (!box_inside_grid(o.tbv_lo, o.tbv_hi)) list_add(outside_tbvs, o.tbv_outside_pos, slot);
   ++tbv_count;
 }
 
 void Scene::Impl::drop_tbv(std::uint32_t slot) {
   Obj& o = objs[slot];
-  brick_remove(o.tbv_voxels, (slot << 1) | 1u);
+  brick_remove(o.tbv_voxels);
   list_remove(outside_tbvs, o.tbv_outside_pos, true);
   o.under_tbv = false;
   ++o.tbv_gen;  // Invalidates its expiry entry.

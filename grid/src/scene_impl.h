@@ -8,8 +8,8 @@
 //    each voxel; built once (paper 4.5).
 //  * dyn_opaque      per voxel, how many discretized dynamic objects contain
 //    it wholly (allocated only when the scene has dynamic objects).
-//  * bricks_         per 4x4x4 brick, the dynamic objects and TBVs touching
-//    it; an entry is (slot << 1 | is_tbv). The exact voxel test happens when
+//  * bricks          per 4x4x4 brick, the dynamic objects and TBVs touching
+//    it; an entry is (slot << 1 | is_tbv, generation). The exact voxel test happens when
 //    the traversal reaches a voxel, so a move or a TBV costs the bricks it
 //    covers, not the voxels.
 // Objects and TBVs beyond the grid box are also kept on `outside_` lists and
@@ -51,6 +51,7 @@ struct Obj {
   std::uint32_t claims = 0;   ///< Viewers whose last PVS holds it.
   bool pending_unclaimed = false;
   Vec3 disc_center{0.0};      ///< Centre it is discretized at (when !under_tbv).
+  std::uint32_t disc_gen = 0; ///< Bumped when the discretization is removed.
   std::int32_t outside_pos = -1;  ///< Index in outside_objs_, or -1.
 
   // TBV (when under_tbv): a box holding every position reachable before expiry.
@@ -63,6 +64,20 @@ struct Obj {
 
   Vec3 box_lo() const { return center - half; }
   Vec3 box_hi() const { return center + half; }
+};
+
+/// An entry of a brick: (slot << 1 | is_tbv) and the generation of the
+/// object's discretization or TBV it was written for. Removal only lowers the
+/// brick's live count; stale entries are skipped when read and dropped when
+/// they outnumber the live ones, so removal never searches a list.
+struct BrickEntry {
+  std::uint32_t key;
+  std::uint32_t gen;
+};
+
+struct Brick {
+  std::vector<BrickEntry> entries;
+  std::uint32_t live = 0;
 };
 
 struct ExpiryEntry {
@@ -87,6 +102,8 @@ struct Scratch::Impl {
   std::uint32_t stamp_tag = 0;
   /// Per object slot: frame in which it was put in the PVS.
   std::vector<std::uint32_t> obj_mark;
+  /// Per object slot: frame in which it was tested against the frustum.
+  std::vector<std::uint32_t> obj_seen;
   std::uint32_t frame = 0;
 
   // Reused buffers.
@@ -117,7 +134,7 @@ struct Scene::Impl {
   // Dynamic layer.
   std::vector<std::uint32_t> dyn_opaque;
   glm::ivec3 bricks_res{0};
-  std::vector<std::vector<std::uint32_t>> bricks;
+  std::vector<detail::Brick> bricks;
 
   // Beyond the grid.
   std::vector<std::uint32_t> outside_objs;
@@ -161,8 +178,14 @@ struct Scene::Impl {
   // --- dynamic state ------------------------------------------------------
   void discretize(std::uint32_t slot);
   void undiscretize(std::uint32_t slot);
-  void brick_add(const detail::VoxBox& vb, std::uint32_t entry);
-  void brick_remove(const detail::VoxBox& vb, std::uint32_t entry);
+  void brick_add(const detail::VoxBox& vb, std::uint32_t key, std::uint32_t gen);
+  void brick_remove(const detail::VoxBox& vb);
+  /// Whether a brick entry still stands for a discretization or TBV.
+  bool current(const detail::BrickEntry& e) const {
+    const detail::Obj& o = objs[e.key >> 1];
+    return (e.key & 1u) ? (o.under_tbv && o.tbv_gen == e.gen)
+                        : (!o.under_tbv && o.disc_gen == e.gen);
+  }
   void make_tbv(std::uint32_t slot, double now);
   void drop_tbv(std::uint32_t slot);
   void reveal(std::uint32_t slot);
@@ -170,6 +193,7 @@ struct Scene::Impl {
   void list_remove(std::vector<std::uint32_t>& list, std::int32_t& pos, bool tbv);
 
   double initial_period(const detail::Obj& o) const;
+  double max_period(const detail::Obj& o) const;
 };
 
 }  // namespace voxvis

@@ -110,12 +110,16 @@ class Traversal {
   void run();
 
  private:
+  /// Puts an object reached through a voxel into the PVS unless its box
+  /// misses the frustum (a voxel in view can hold objects that are not).
   void add(std::uint32_t slot) {
-    std::uint32_t& mark = w_.obj_mark[slot];
-    if (mark != w_.frame) {
-      mark = w_.frame;
-      w_.pvs.push_back(slot);
-    }
+    std::uint32_t& seen = w_.obj_seen[slot];
+    if (seen == w_.frame) return;
+    seen = w_.frame;
+    const Obj& o = s_.objs[slot];
+    if (!wf_.may_intersect_box(o.box_lo(), o.box_hi())) return;
+    w_.obj_mark[slot] = w_.frame;
+    w_.pvs.push_back(slot);
   }
   bool in_grid(const std::int64_t v[3]) const {
     return v[0] >= glo_[0] && v[0] <= ghi_[0] && v[1] >= glo_[1] && v[1] <= ghi_[1] &&
@@ -310,21 +314,22 @@ void Traversal::collect(std::int64_t idx, const std::int64_t v[3], std::int64_t 
   const int gx = static_cast<int>(E_[0] + v[0]);
   const int gy = static_cast<int>(E_[1] + v[1]);
   const int gz = static_cast<int>(E_[2] + v[2]);
-  const auto& list = s_.bricks[static_cast<std::size_t>(
+  const detail::Brick& brick = s_.bricks[static_cast<std::size_t>(
       (gx >> detail::kBrickShift) +
       s_.bricks_res.x * ((gy >> detail::kBrickShift) +
                          std::int64_t{s_.bricks_res.y} * (gz >> detail::kBrickShift)))];
-  if (list.empty()) return;
+  if (brick.live == 0) return;
   std::size_t first_reveal = w_.reveals.size();
-  for (std::uint32_t entry : list) {
-    const std::uint32_t slot = entry >> 1;
+  for (const detail::BrickEntry& e : brick.entries) {
+    if (!s_.current(e)) continue;
+    const std::uint32_t slot = e.key >> 1;
     const Obj& o = s_.objs[slot];
-    if (entry & 1u) {
+    if (e.key & 1u) {
       const detail::VoxBox& vb = o.tbv_voxels;
       if (gx >= vb.lo.x && gx <= vb.hi.x && gy >= vb.lo.y && gy <= vb.hi.y && gz >= vb.lo.z &&
           gz <= vb.hi.z)
         w_.reveals.push_back(slot);
-    } else if (w_.obj_mark[slot] != w_.frame && s_.touches(o, o.center, gx, gy, gz)) {
+    } else if (w_.obj_seen[slot] != w_.frame && s_.touches(o, o.center, gx, gy, gz)) {
       add(slot);
     }
   }
@@ -623,7 +628,7 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
     Obj& o = s.objs[e.slot];
     if (!o.under_tbv || o.tbv_gen != e.gen) continue;
     s.drop_tbv(e.slot);
-    if (s.options.tbv_period <= 0.0) o.tbv_period = std::fmin(2.0 * o.tbv_period, s.options.tbv_max_period);
+    o.tbv_period = std::fmin(2.0 * o.tbv_period, s.max_period(o));
     s.make_tbv(e.slot, t);
     ++st.tbvs_expired;
     wake.push_back(e.slot);

@@ -50,10 +50,12 @@ struct SceneOptions {
   std::int64_t auto_voxels = 600'000;
   /// TBV validity period in seconds; 0 chooses one per object: the time to
   /// cross `tbv_voxels` voxels at max_speed, doubled each time the TBV expires
-  /// unrevealed (an object hidden long gets ever longer-lived TBVs), reset when
-  /// it is revealed.
+  /// unrevealed (an object hidden long gets longer-lived TBVs) up to the time
+  /// to cross `tbv_max_voxels`, reset when it is revealed. Each period is
+  /// stretched by up to 25% per object so that renewals do not come in waves.
   double tbv_period = 0.0;
   double tbv_voxels = 2.0;
+  double tbv_max_voxels = 8.0;
   /// Upper bound for any TBV validity period, seconds.
   double tbv_max_period = 60.0;
 };
