@@ -843,5 +843,39 @@ TEST(HardCasesValidation, UnknownViewerIsRefused) {
   EXPECT_TRUE(h.frame(camera({5, 5, 20}, {0, 0, -1}), 0.0).empty());
 }
 
+
+// --- hidden objects near the grid's boundary --------------------------------
+
+TEST(HardCases, HiddenObjectsNearTheBoundaryStayUnderTbvs) {
+  // Hidden spheres touching the bounds from inside: their TBVs would reach beyond the
+  // grid, where no voxel stands for them. Growth stops at the bounds, so with
+  // nothing moving they stay hidden and cost nothing frame after frame.
+  SceneDesc scene = hidden_behind_wall(0, 2.0, 45);
+  ObjectId id = 100;
+  for (const Vec3& c : {Vec3(0.8, 20, 8), Vec3(39.2, 20, 8), Vec3(20, 0.75, 8), Vec3(20, 39.25, 0.75)})
+    scene.objects.push_back(dynamic(sphere(id++, c, 0.7), 2.0));
+  EngineHarness h(scene, {}, "boundary");
+  ASSERT_TRUE(h.status().ok) << h.status().str();
+  double t = 0.0;
+  for (int f = 0; f < 10; ++f, t += kDt) ASSERT_TRUE(h.frame(kWallCam, t).empty());
+  EXPECT_EQ(h.last().stats.tbvs_active, 4u);
+  std::uint32_t created = 0, revealed = 0;
+  for (int f = 0; f < 30; ++f, t += kDt) {
+    ASSERT_TRUE(h.frame(kWallCam, t).empty());
+    created += h.last().stats.tbvs_created;
+    revealed += h.last().stats.tbvs_revealed;
+    EXPECT_TRUE(h.last().wake.empty() || h.last().stats.tbvs_expired > 0) << "frame " << f;
+  }
+  EXPECT_EQ(revealed, 0u);
+  EXPECT_EQ(created, 0u);
+  // Leaving the grid at a legal speed leaves the TBV: the move reveals it,
+  // and once in view it is in the PVS.
+  MoveReport report;
+  ASSERT_TRUE(h.move(t, {{100, Vec3(0.3, 20, 8)}}, &report).ok);  // 0.5 in 1.3 s
+  EXPECT_TRUE(report.too_fast.empty());
+  ASSERT_TRUE(h.frame(kWallCam, t).empty());
+  EXPECT_GE(h.last().stats.tbvs_revealed, 1u);
+  EXPECT_TRUE(std::binary_search(h.last().wake.begin(), h.last().wake.end(), ObjectId{100}));
+}
 }  // namespace
 }  // namespace voxvis::test
