@@ -6,24 +6,13 @@
 
 #include <glm/geometric.hpp>
 
+#include "numeric.h"
+
 namespace voxvis {
-namespace {
 
-bool finite3(const Vec3& v) {
-  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
-}
-
-double max_abs(const Vec3& v) {
-  return std::max(std::fabs(v.x), std::max(std::fabs(v.y), std::fabs(v.z)));
-}
-
-std::string num(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.17g", v);
-  return buf;
-}
-
-}  // namespace
+using detail::finite3;
+using detail::max_abs;
+using detail::num;
 
 Status validate_camera(const Camera& c) {
   if (!finite3(c.eye)) return Status::Error("eye", "must be three finite numbers");

@@ -8,28 +8,21 @@
 
 #include <glm/geometric.hpp>
 
+#include "numeric.h"
 #include "scene_impl.h"
 
 namespace voxvis {
 
 using detail::Obj;
 using detail::VoxBox;
+using detail::finite3;
+using detail::max_abs;
+using detail::num;
 
 namespace {
 
 constexpr double kUlp = std::numeric_limits<double>::epsilon();
 
-bool finite3(const Vec3& v) {
-  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
-}
-double max_abs(const Vec3& v) {
-  return std::max(std::fabs(v.x), std::max(std::fabs(v.y), std::fabs(v.z)));
-}
-std::string num(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.17g", v);
-  return buf;
-}
 std::string obj_field(std::size_t i, const char* name) {
   return "objects[" + std::to_string(i) + "]." + name;
 }

@@ -27,6 +27,7 @@
 #include <glm/geometric.hpp>
 
 #include "frustum.h"
+#include "numeric.h"
 #include "scene_impl.h"
 
 namespace voxvis {
@@ -34,6 +35,7 @@ namespace voxvis {
 using detail::LocalFrustum;
 using detail::Obj;
 using detail::WorldFrustum;
+using detail::max_abs;
 
 namespace {
 
@@ -74,9 +76,6 @@ struct ExitTable {
   }
 };
 
-double max_abs(const Vec3& v) {
-  return std::max(std::fabs(v.x), std::max(std::fabs(v.y), std::fabs(v.z)));
-}
 
 /// Beyond 2^40 voxels from the grid, shell arithmetic in doubles would lose
 /// the precision the conservative tests need.
