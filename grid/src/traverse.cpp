@@ -71,9 +71,6 @@ struct ExitTable {
   /// through a side face and the general routine must answer).
   std::vector<std::int64_t> b, d;
   std::vector<std::uint8_t> b_whole, d_whole;
-  bool covers(std::int64_t vb, std::int64_t vd) const {
-    return b_whole[static_cast<std::size_t>(vb - b0)] && d_whole[static_cast<std::size_t>(vd - d0)];
-  }
 };
 
 
@@ -141,9 +138,18 @@ class Traversal {
                        std::int64_t b1) const;
   void fill_table(ExitTable& t, int face, std::int64_t la, std::int64_t j, const Range& rb,
                   const Range& rd) const;
-  bool table_occluded(const ExitTable& t, const std::int64_t v[3], int b, int d) const;
-  bool occluded(const std::int64_t v[3], std::int64_t m, int b, int d) const;
-  void visit(const std::int64_t v[3], std::int64_t m, int face, int b, int d);
+  /// Per-row view of an exit table: the row's exit rows on C_j, if the
+  /// table answers for this row at all.
+  struct RowExits {
+    bool whole = false;      ///< The table answers for voxels of this row (per column too).
+    bool never = false;      ///< No voxel of the row can be proven occluded by it.
+    std::int64_t ud0 = 0, ud1 = -1;
+  };
+  RowExits row_exits(const ExitTable& t, int d, std::int64_t vd) const;
+  bool row_occluded(const ExitTable& t, const RowExits& r, std::int64_t vb, int b,
+                    const std::int64_t v[3]) const;
+  void visit_row(int face, int a, int b, int d, std::int64_t la, std::int64_t vd, Range row,
+                 std::int64_t m);
   void collect(std::int64_t idx, const std::int64_t v[3], std::int64_t m, std::uint8_t flags);
   void reveal_in_frame(std::uint32_t slot, std::int64_t m);
   std::int64_t chess_from_eye(const Obj& o) const;
@@ -371,72 +377,105 @@ void Traversal::fill_table(ExitTable& t, int face, std::int64_t la, std::int64_t
   fill(d, rd, t.d, t.d_whole);
 }
 
-bool Traversal::table_occluded(const ExitTable& t, const std::int64_t v[3], int b, int d) const {
-  const std::int64_t* rb = t.b.data() + 2 * (v[b] - t.b0);
-  const std::int64_t* rd = t.d.data() + 2 * (v[d] - t.d0);
-  if (rb[0] > rb[1] || rd[0] > rd[1]) return false;
-  if (!eye_inside_) {
-    // Exits may lie beyond the grid, in empty space that never blocks.
-    if (!t.layer_in_grid || rb[0] < glo_[b] || rb[1] > ghi_[b] || rd[0] < glo_[d] ||
-        rd[1] > ghi_[d])
-      return false;
-  }
-  // With the eye inside, required() clamped the ranges to the grid.
+Traversal::RowExits Traversal::row_exits(const ExitTable& t, int d, std::int64_t vd) const {
+  RowExits r;
+  const auto i = static_cast<std::size_t>(vd - t.d0);
+  r.whole = t.d_whole[i] != 0;
+  r.ud0 = t.d[2 * i];
+  r.ud1 = t.d[2 * i + 1];
+  // An empty exit range, or exits beyond the grid (empty space) with the
+  // eye outside, prove nothing.
+  r.never = r.ud0 > r.ud1 ||
+            (!eye_inside_ && (!t.layer_in_grid || r.ud0 < glo_[d] || r.ud1 > ghi_[d]));
+  return r;
+}
+
+bool Traversal::row_occluded(const ExitTable& t, const RowExits& r, std::int64_t vb, int b,
+                             const std::int64_t v[3]) const {
+  const auto i = static_cast<std::size_t>(vb - t.b0);
+  if (!r.whole || !t.b_whole[i]) return occluded_at(v, t.j);  // May leave through a side face.
+  if (r.never) return false;
+  const std::int64_t ub0 = t.b[2 * i], ub1 = t.b[2 * i + 1];
+  if (ub0 > ub1) return false;
+  if (!eye_inside_ && (ub0 < glo_[b] || ub1 > ghi_[b])) return false;
   const std::uint8_t* stamp = w_.stamp.data();
-  for (std::int64_t ud = rd[0]; ud <= rd[1]; ++ud) {
-    const std::int64_t row = t.base + ud * t.sd;
-    for (std::int64_t ub = rb[0]; ub <= rb[1]; ++ub) {
-      const std::uint8_t st = stamp[static_cast<std::size_t>(row + ub * t.sb)];
+  for (std::int64_t ud = r.ud0; ud <= r.ud1; ++ud) {
+    const std::int64_t rowi = t.base + ud * t.sd;
+    for (std::int64_t ub = ub0; ub <= ub1; ++ub) {
+      const std::uint8_t st = stamp[static_cast<std::size_t>(rowi + ub * t.sb)];
       if ((st & ~3u) == tag_ && (st & 3u) == kLive) return false;
     }
   }
   return true;
 }
 
-bool Traversal::occluded(const std::int64_t v[3], std::int64_t m, int b, int d) const {
-  if (m < 2) return false;  // Shell 1 sees the eye's voxel only, which never blocks.
-  // A voxel whose projection falls wholly on the face of C_j it faces: the
-  // tables answer. Others may leave through several faces.
-  if (prev_.covers(v[b], v[d]) ? table_occluded(prev_, v, b, d) : occluded_at(v, m - 1))
-    return true;
-  // Testing only the previous shell erodes a shadow by about a voxel per
-  // shell, and the losses add up. The half-distance shell keeps the
-  // occluders' own voxels in view for twice as long, so its test stops the
-  // accumulation (docs/design.md, "Erosion").
-  if (m < 4) return false;
-  return half_.covers(v[b], v[d]) ? table_occluded(half_, v, b, d) : occluded_at(v, m / 2);
-}
-
-void Traversal::visit(const std::int64_t v[3], std::int64_t m, int face, int b, int d) {
-  const std::int64_t idx = gindex(v);
-  std::uint8_t& stamp = w_.stamp[static_cast<std::size_t>(idx)];
-  if ((stamp & ~3u) == tag_) return;  // Reached through another face already.
-  ++st_.voxels_visited;
-  const Vec3 lo{static_cast<double>(v[0]), static_cast<double>(v[1]), static_cast<double>(v[2])};
-  if (occluded(v, m, b, d)) {
-    stamp = static_cast<std::uint8_t>(tag_ | kBlocked);
-    return;
-  }
-  const std::uint8_t flags = s_.vflags[static_cast<std::size_t>(idx)];
-  const bool opaque = (flags & (Scene::Impl::kStaticOpaque | Scene::Impl::kDynOpaque)) != 0;
-  // An opaque voxel occludes only when wholly beyond the near plane: nearer
-  // geometry is clipped away by a renderer and must not hide anything.
-  const bool blocking = opaque && lf_.depth_min(lo) >= lf_.near + depth_tol_;
-  stamp = static_cast<std::uint8_t>(tag_ | (blocking ? kBlocked : kLive));
-  if (!blocking) {
-    IBox& fl = face_live_[face];
-    if (!face_has_live_[face]) {
-      for (int a = 0; a < 3; ++a) fl.lo[a] = fl.hi[a] = v[a];
-      face_has_live_[face] = true;
-    } else {
-      for (int a = 0; a < 3; ++a) {
-        fl.lo[a] = std::min(fl.lo[a], v[a]);
-        fl.hi[a] = std::max(fl.hi[a], v[a]);
-      }
+void Traversal::visit_row(int face, int a, int b, int d, std::int64_t la, std::int64_t vd,
+                          Range row, std::int64_t m) {
+  // Visits a row of a face layer, with what is constant along it hoisted:
+  // the voxel index steps by one stride, the exit rows are fixed, and the
+  // live range is gathered once per row.
+  std::int64_t v[3];
+  v[a] = la;
+  v[d] = vd;
+  v[b] = 0;
+  const std::int64_t base = gindex(v);
+  const std::int64_t sb = stride_[b];
+  RowExits pe, he;
+  if (m >= 2) pe = row_exits(prev_, d, vd);
+  if (m >= 4) he = row_exits(half_, d, vd);
+  std::uint8_t* stamps = w_.stamp.data();
+  const std::uint8_t* flags_arr = s_.vflags.data();
+  std::int64_t live_lo = std::numeric_limits<std::int64_t>::max(), live_hi = std::numeric_limits<std::int64_t>::min();
+  for (std::int64_t vb = row.lo; vb <= row.hi; ++vb) {
+    v[b] = vb;
+    // The row's ends were widened for rounding: test them exactly.
+    if ((vb == row.lo || vb == row.hi) &&
+        !lf_.may_contain_voxel(Vec3(static_cast<double>(v[0]), static_cast<double>(v[1]),
+                                    static_cast<double>(v[2]))))
+      continue;
+    const std::int64_t idx = base + vb * sb;
+    std::uint8_t& stamp = stamps[static_cast<std::size_t>(idx)];
+    if ((stamp & ~3u) == tag_) continue;  // Reached through another face already.
+    ++st_.voxels_visited;
+    // Testing only the previous shell erodes a shadow by about a voxel per
+    // shell, and the losses add up. The half-distance shell keeps the
+    // occluders' own voxels in view for twice as long, so its test stops the
+    // accumulation (docs/design.md, "Which shells").
+    if (m >= 2 && (row_occluded(prev_, pe, vb, b, v) || (m >= 4 && row_occluded(half_, he, vb, b, v)))) {
+      stamp = static_cast<std::uint8_t>(tag_ | kBlocked);
+      continue;
     }
+    const std::uint8_t flags = flags_arr[static_cast<std::size_t>(idx)];
+    bool blocking = false;
+    if (flags & (Scene::Impl::kStaticOpaque | Scene::Impl::kDynOpaque)) {
+      // An opaque voxel occludes only when wholly beyond the near plane:
+      // nearer geometry is clipped away by a renderer and hides nothing.
+      const Vec3 lo{static_cast<double>(v[0]), static_cast<double>(v[1]), static_cast<double>(v[2])};
+      blocking = lf_.depth_min(lo) >= lf_.near + depth_tol_;
+    }
+    stamp = static_cast<std::uint8_t>(tag_ | (blocking ? kBlocked : kLive));
+    if (!blocking) {
+      live_lo = std::min(live_lo, vb);
+      live_hi = vb;
+    }
+    if ((flags & Scene::Impl::kStaticIds) == 0 && !has_dyn_) continue;  // Nothing to collect.
+    const Vec3 lo{static_cast<double>(v[0]), static_cast<double>(v[1]), static_cast<double>(v[2])};
+    if (lf_.depth_max(lo) >= lf_.near - depth_tol_) collect(idx, v, m, flags);
   }
-  if ((flags & Scene::Impl::kStaticIds) == 0 && !has_dyn_) return;  // Empty: nothing to collect.
-  if (lf_.depth_max(lo) >= lf_.near - depth_tol_) collect(idx, v, m, flags);
+  if (live_lo > live_hi) return;
+  IBox& fl = face_live_[face];
+  if (!face_has_live_[face]) {
+    fl.lo[a] = fl.hi[a] = la;
+    fl.lo[d] = fl.hi[d] = vd;
+    fl.lo[b] = live_lo;
+    fl.hi[b] = live_hi;
+    face_has_live_[face] = true;
+  } else {
+    fl.lo[d] = std::min(fl.lo[d], vd);
+    fl.hi[d] = std::max(fl.hi[d], vd);
+    fl.lo[b] = std::min(fl.lo[b], live_lo);
+    fl.hi[b] = std::max(fl.hi[b], live_hi);
+  }
 }
 
 void Traversal::run() {
@@ -570,14 +609,7 @@ void Traversal::run() {
         v[a] = la;
         for (v[d] = d0; v[d] <= d1; ++v[d]) {
           const Range row = row_in_pyramid(a, la, b, d, v[d], b0, b1);
-          for (v[b] = row.lo; v[b] <= row.hi; ++v[b]) {
-            // The row's ends were widened for rounding: test them exactly.
-            if ((v[b] == row.lo || v[b] == row.hi) &&
-                !lf_.may_contain_voxel(Vec3(static_cast<double>(v[0]), static_cast<double>(v[1]),
-                                            static_cast<double>(v[2]))))
-              continue;
-            visit(v, m, face, b, d);
-          }
+          if (!row.empty()) visit_row(face, a, b, d, la, v[d], row, m);
         }
       }
     }
