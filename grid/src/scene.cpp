@@ -328,7 +328,9 @@ void Scene::Impl::make_tbv(std::uint32_t slot, double now) {
   const double s = slop(std::fmax(max_abs(o.tbv_lo), max_abs(o.tbv_hi)));
   o.tbv_voxels = touch_range(o.tbv_lo, o.tbv_hi, s);
   brick_add(o.tbv_voxels, (slot << 1) | 1u, o.tbv_gen);
-  if (!box_inside_grid(o.tbv_lo, o.tbv_hi)) list_add(outside_tbvs, o.tbv_outside_pos, slot);
+  // Clamped growth ends on the bounds, so only an object that itself reaches
+  // beyond them has a TBV with a part outside the grid.
+  if (!box_inside_grid(lo, hi)) list_add(outside_tbvs, o.tbv_outside_pos, slot);
   ++tbv_count;
 }
 
