@@ -300,15 +300,15 @@ double Scene::Impl::max_period(const Obj& o) const {
   return std::clamp(options.tbv_max_voxels * vmin / o.max_speed, 1e-3, options.tbv_max_period);
 }
 
-void Scene::Impl::make_tbv(std::uint32_t slot, double now) {
-  Obj& o = objs[slot];
+double Scene::Impl::tbv_box(std::uint32_t slot, Vec3* lo_out, Vec3* hi_out) const {
+  const Obj& o = objs[slot];
   // Every centre reachable before expiry is within max_speed * period of the
   // current one, so the object's box grown by that much bounds it (Sudarsky &
   // Gotsman's TBV, as a box since our objects are boxes and spheres).
   //
   // The period is stretched by up to 25%, differently for each object and
   // renewal, so that TBVs created together do not all expire together.
-  std::uint64_t h = (std::uint64_t{slot} << 32) ^ o.tbv_gen ^ 0x9e3779b97f4a7c15ull;
+  std::uint64_t h = (std::uint64_t{slot} << 32) ^ o.tbv_epoch ^ 0x9e3779b97f4a7c15ull;
   h = (h ^ (h >> 30)) * 0xbf58476d1ce4e5b9ull;
   h = (h ^ (h >> 27)) * 0x94d049bb133111ebull;
   h ^= h >> 31;
@@ -318,20 +318,66 @@ void Scene::Impl::make_tbv(std::uint32_t slot, double now) {
   // beyond them the object can only get by a move, and a move that leaves
   // the TBV reveals it (apply_moves). So a hidden object near the boundary
   // costs nothing per frame instead of a frustum test beyond the grid.
-  const Vec3 lo = o.center - o.half, hi = o.center + o.half;
-  o.tbv_lo = glm::min(lo, glm::max(lo - grow, spec.bounds_min));
-  o.tbv_hi = glm::max(hi, glm::min(hi + grow, spec.bounds_max));
+  const Vec3 lo = o.box_lo(), hi = o.box_hi();
+  *lo_out = glm::min(lo, glm::max(lo - grow, spec.bounds_min));
+  *hi_out = glm::max(hi, glm::min(hi + grow, spec.bounds_max));
+  return period;
+}
+
+void Scene::Impl::make_tbv(std::uint32_t slot, double now) {
+  Obj& o = objs[slot];
+  const double period = tbv_box(slot, &o.tbv_lo, &o.tbv_hi);
+  o.tbv_center = o.center;
   o.tbv_expiry = o.max_speed > 0.0 ? now + period : std::numeric_limits<double>::infinity();
   o.under_tbv = true;
   ++o.tbv_gen;
-  if (std::isfinite(o.tbv_expiry)) expiry.push({o.tbv_expiry, slot, o.tbv_gen});
+  ++o.tbv_epoch;
+  if (std::isfinite(o.tbv_expiry)) expiry.push({o.tbv_expiry, slot, o.tbv_epoch});
   const double s = slop(std::fmax(max_abs(o.tbv_lo), max_abs(o.tbv_hi)));
   o.tbv_voxels = touch_range(o.tbv_lo, o.tbv_hi, s);
   brick_add(o.tbv_voxels, (slot << 1) | 1u, o.tbv_gen);
   // Clamped growth ends on the bounds, so only an object that itself reaches
   // beyond them has a TBV with a part outside the grid.
-  if (!box_inside_grid(lo, hi)) list_add(outside_tbvs, o.tbv_outside_pos, slot);
+  if (!box_inside_grid(o.box_lo(), o.box_hi())) list_add(outside_tbvs, o.tbv_outside_pos, slot);
   ++tbv_count;
+}
+
+void Scene::Impl::renew_tbv(std::uint32_t slot, double now) {
+  Obj& o = objs[slot];
+  if (o.center != o.tbv_center) {
+    drop_tbv(slot);
+    make_tbv(slot, now);
+    return;
+  }
+  // The object has not moved since its TBV was made (the common case for a
+  // hidden object nobody simulates): the new box has the same centre, so the
+  // union of old and new is a valid TBV, and only the bricks it adds need
+  // writing. A renewal at the growth cap then costs no brick at all.
+  Vec3 lo, hi;
+  const double period = tbv_box(slot, &lo, &hi);
+  o.tbv_lo = glm::min(o.tbv_lo, lo);
+  o.tbv_hi = glm::max(o.tbv_hi, hi);
+  const VoxBox old_vb = o.tbv_voxels;
+  const double s = slop(std::fmax(max_abs(o.tbv_lo), max_abs(o.tbv_hi)));
+  o.tbv_voxels = touch_range(o.tbv_lo, o.tbv_hi, s);
+  if (!o.tbv_voxels.empty()) {
+    const glm::ivec3 olo = old_vb.empty() ? glm::ivec3(1) : old_vb.lo >> detail::kBrickShift;
+    const glm::ivec3 ohi = old_vb.empty() ? glm::ivec3(0) : old_vb.hi >> detail::kBrickShift;
+    const glm::ivec3 nlo = o.tbv_voxels.lo >> detail::kBrickShift;
+    const glm::ivec3 nhi = o.tbv_voxels.hi >> detail::kBrickShift;
+    for (int z = nlo.z; z <= nhi.z; ++z)
+      for (int y = nlo.y; y <= nhi.y; ++y)
+        for (int x = nlo.x; x <= nhi.x; ++x) {
+          if (x >= olo.x && x <= ohi.x && y >= olo.y && y <= ohi.y && z >= olo.z && z <= ohi.z)
+            continue;  // Holds the TBV's entry already.
+          brick_add(VoxBox{glm::ivec3(x, y, z) << detail::kBrickShift,
+                           glm::ivec3(x, y, z) << detail::kBrickShift},
+                    (slot << 1) | 1u, o.tbv_gen);
+        }
+  }
+  o.tbv_expiry = now + period;
+  ++o.tbv_epoch;
+  expiry.push({o.tbv_expiry, slot, o.tbv_epoch});
 }
 
 void Scene::Impl::drop_tbv(std::uint32_t slot) {
@@ -339,7 +385,8 @@ void Scene::Impl::drop_tbv(std::uint32_t slot) {
   brick_remove(o.tbv_voxels);
   list_remove(outside_tbvs, o.tbv_outside_pos, true);
   o.under_tbv = false;
-  ++o.tbv_gen;  // Invalidates its expiry entry.
+  ++o.tbv_gen;    // Its brick entries are stale from now on,
+  ++o.tbv_epoch;  // and so is its expiry entry.
   --tbv_count;
 }
 

@@ -58,7 +58,9 @@ struct Obj {
   Vec3 tbv_lo{0.0}, tbv_hi{0.0};  ///< World units.
   double tbv_expiry = 0.0;        ///< Seconds.
   double tbv_period = 0.0;        ///< Seconds, the period of the current/next TBV.
-  std::uint32_t tbv_gen = 0;      ///< Tells live heap entries from stale ones.
+  std::uint32_t tbv_gen = 0;      ///< Tells current brick entries from stale ones.
+  std::uint32_t tbv_epoch = 0;    ///< Tells the live expiry entry from stale ones.
+  Vec3 tbv_center{0.0};           ///< Centre the TBV was grown around.
   std::int32_t tbv_outside_pos = -1;
   VoxBox tbv_voxels;              ///< Voxels the TBV touches, clipped to the grid.
 
@@ -83,7 +85,7 @@ struct Brick {
 struct ExpiryEntry {
   double expiry;
   std::uint32_t slot;
-  std::uint32_t gen;
+  std::uint32_t epoch;  ///< The object's tbv_epoch when pushed.
   bool operator>(const ExpiryEntry& o) const { return expiry > o.expiry; }
 };
 
@@ -187,6 +189,11 @@ struct Scene::Impl {
                         : (!o.under_tbv && o.disc_gen == e.gen);
   }
   void make_tbv(std::uint32_t slot, double now);
+  /// Gives an expired TBV a new validity period (see scene.cpp).
+  void renew_tbv(std::uint32_t slot, double now);
+  /// The TBV box for the object's current centre and a period starting now;
+  /// returns the (jittered) period.
+  double tbv_box(std::uint32_t slot, Vec3* lo, Vec3* hi) const;
   void drop_tbv(std::uint32_t slot);
   void reveal(std::uint32_t slot);
   void list_add(std::vector<std::uint32_t>& list, std::int32_t& pos, std::uint32_t slot);

@@ -657,10 +657,9 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
     const detail::ExpiryEntry e = s.expiry.top();
     s.expiry.pop();
     Obj& o = s.objs[e.slot];
-    if (!o.under_tbv || o.tbv_gen != e.gen) continue;
-    s.drop_tbv(e.slot);
+    if (!o.under_tbv || o.tbv_epoch != e.epoch) continue;
     o.tbv_period = std::fmin(2.0 * o.tbv_period, s.max_period(o));
-    s.make_tbv(e.slot, t);
+    s.renew_tbv(e.slot, t);
     ++st.tbvs_expired;
     wake.push_back(e.slot);
   }

@@ -877,5 +877,37 @@ TEST(HardCases, HiddenObjectsNearTheBoundaryStayUnderTbvs) {
   EXPECT_GE(h.last().stats.tbvs_revealed, 1u);
   EXPECT_TRUE(std::binary_search(h.last().wake.begin(), h.last().wake.end(), ObjectId{100}));
 }
+
+TEST(HardCases, ExpiredTbvsOfUnmovedObjectsAreRenewedInPlace) {
+  // Short fixed periods: many renewals. Unmoved hidden objects keep their
+  // TBVs (no new TBV is created, nothing is revealed), each renewal wakes the
+  // object, and a later move into view is still caught.
+  const SceneDesc scene = hidden_behind_wall(6, 1.0, 46);
+  SceneOptions options;
+  options.tbv_period = 0.1;
+  EngineHarness h(scene, options, "renewals");
+  ASSERT_TRUE(h.status().ok) << h.status().str();
+  double t = 0.0;
+  for (int f = 0; f < 5; ++f, t += kDt) ASSERT_TRUE(h.frame(kWallCam, t).empty());
+  ASSERT_EQ(h.last().stats.tbvs_active, 6u);
+  std::uint32_t expired = 0, created = 0, revealed = 0;
+  for (int f = 0; f < 60; ++f, t += kDt) {
+    ASSERT_TRUE(h.frame(kWallCam, t).empty());
+    expired += h.last().stats.tbvs_expired;
+    created += h.last().stats.tbvs_created;
+    revealed += h.last().stats.tbvs_revealed;
+    EXPECT_EQ(h.last().wake.size(), h.last().stats.tbvs_expired) << "frame " << f;
+  }
+  EXPECT_GE(expired, 6u * 10u);  // Two seconds of 0.1 s periods.
+  EXPECT_EQ(created, 0u);
+  EXPECT_EQ(revealed, 0u);
+  // A move into view after the renewals (too fast, as it happens): the
+  // object leaves its TBV and is revealed.
+  MoveReport report;
+  ASSERT_TRUE(h.move(t, {{100, Vec3(20, 20, 30)}}, &report).ok);
+  ASSERT_TRUE(h.frame(kWallCam, t).empty());  // The harness checks zero misses.
+  EXPECT_TRUE(std::binary_search(h.last().pvs.begin(), h.last().pvs.end(), ObjectId{100}));
+}
+
 }  // namespace
 }  // namespace voxvis::test
