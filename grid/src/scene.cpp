@@ -306,13 +306,14 @@ double Scene::Impl::tbv_box(std::uint32_t slot, Vec3* lo_out, Vec3* hi_out) cons
   // current one, so the object's box grown by that much bounds it (Sudarsky &
   // Gotsman's TBV, as a box since our objects are boxes and spheres).
   //
-  // The period is stretched by up to 25%, differently for each object and
-  // renewal, so that TBVs created together do not all expire together.
+  // The period is scaled by a factor in [0.5, 1.5), different for each object
+  // and renewal, so that TBVs created together (say, 100,000 objects hidden
+  // in the first frame) do not all expire in the same later frame.
   std::uint64_t h = (std::uint64_t{slot} << 32) ^ o.tbv_epoch ^ 0x9e3779b97f4a7c15ull;
   h = (h ^ (h >> 30)) * 0xbf58476d1ce4e5b9ull;
   h = (h ^ (h >> 27)) * 0x94d049bb133111ebull;
   h ^= h >> 31;
-  const double period = o.tbv_period * (1.0 + 0.25 * static_cast<double>(h >> 11) * 0x1p-53);
+  const double period = o.tbv_period * (0.5 + static_cast<double>(h >> 11) * 0x1p-53);
   const double grow = o.max_speed * period;
   // Growth stops at the grid's bounds (the object's own box never shrinks):
   // beyond them the object can only get by a move, and a move that leaves

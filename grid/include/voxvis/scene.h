@@ -52,7 +52,8 @@ struct SceneOptions {
   /// cross `tbv_voxels` voxels at max_speed, doubled each time the TBV expires
   /// unrevealed (an object hidden long gets longer-lived TBVs) up to the time
   /// to cross `tbv_max_voxels`, reset when it is revealed. Each period is
-  /// stretched by up to 25% per object so that renewals do not come in waves.
+  /// scaled by a per-object factor in [0.5, 1.5) so that renewals do not come
+  /// in waves.
   double tbv_period = 0.0;
   double tbv_voxels = 2.0;
   double tbv_max_voxels = 8.0;
