@@ -27,30 +27,6 @@ using Ids = std::vector<ObjectId>;
 constexpr double kDt = 1.0 / 30.0;
 const double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-ObjectDesc sphere(ObjectId id, Vec3 c, double r) {
-  ObjectDesc o;
-  o.id = id;
-  o.shape = Shape::Sphere;
-  o.center = c;
-  o.radius = r;
-  return o;
-}
-
-ObjectDesc box(ObjectId id, Vec3 lo, Vec3 hi) {
-  ObjectDesc o;
-  o.id = id;
-  o.shape = Shape::Box;
-  o.center = 0.5 * (lo + hi);
-  o.half_extent = 0.5 * (hi - lo);
-  return o;
-}
-
-ObjectDesc dynamic(ObjectDesc o, double max_speed) {
-  o.dynamic = true;
-  o.max_speed = max_speed;
-  return o;
-}
-
 Camera camera(Vec3 eye, Vec3 dir, Vec3 up = Vec3(0, 1, 0), double fov = 60.0, double aspect = 1.0,
               double near = 0.01, double far = 1000.0) {
   Camera c;
@@ -195,7 +171,7 @@ TEST(HardCases, BoxesAlignedToVoxelPlanes) {
     glm::ivec3 a(rng.uniform_int(0, 7), rng.uniform_int(0, 3), rng.uniform_int(0, 15));
     glm::ivec3 b = a + glm::ivec3(rng.uniform_int(0, 2), rng.uniform_int(0, 1), rng.uniform_int(0, 3));
     b = glm::min(b, glm::ivec3(7, 3, 15));
-    ObjectDesc o = box(id++, Vec3(a) * 4.0, Vec3(b + 1) * 4.0);
+    ObjectDesc o = box_between(id++, Vec3(a) * 4.0, Vec3(b + 1) * 4.0);
     if (rng.chance(0.2)) o = dynamic(o, 4.0);
     scene.objects.push_back(o);
   }
@@ -244,7 +220,7 @@ std::vector<SlitCase> slit_cases() {
     // A vertical slit x in (19.9, 20.1) — on the voxel plane x = 20 — through
     // a wall z in [20, 30] (two voxels).
     SlitCase c{"slit on a voxel plane", {}, {}, {}};
-    c.walls = {box(1, {-big, -big, 20}, {19.9, big, 30}), box(2, {20.1, -big, 20}, {big, big, 30})};
+    c.walls = {box_between(1, {-big, -big, 20}, {19.9, big, 30}), box_between(2, {20.1, -big, 20}, {big, big, 30})};
     c.target = sphere(10, {20.0, 20.0, 5.0}, 1.0);
     c.cam = camera({20.0, 20.0, 50.0}, {0, 0, -1});
     cases.push_back(c);
@@ -252,8 +228,8 @@ std::vector<SlitCase> slit_cases() {
   {
     // A horizontal slit inside a voxel: y in (22.45, 22.55), wall z in [15, 35].
     SlitCase c{"slit inside a voxel", {}, {}, {}};
-    c.walls = {box(1, {-big, -big, 15}, {big, 22.45, 35}), box(2, {-big, 22.55, 15}, {big, big, 35})};
-    c.target = box(10, {10.0, 21.0, 2.0}, {30.0, 24.0, 4.0});
+    c.walls = {box_between(1, {-big, -big, 15}, {big, 22.45, 35}), box_between(2, {-big, 22.55, 15}, {big, big, 35})};
+    c.target = box_between(10, {10.0, 21.0, 2.0}, {30.0, 24.0, 4.0});
     c.cam = camera({13.0, 22.5, 39.0}, {0.1, 0, -1});
     cases.push_back(c);
   }
@@ -265,8 +241,8 @@ std::vector<SlitCase> slit_cases() {
     const double x1 = 12.55;
     const double y0 = 27.45;
     const double y1 = 27.55;
-    c.walls = {box(1, {-big, -big, 10}, {x0, big, 30}), box(2, {x1, -big, 10}, {big, big, 30}),
-               box(3, {x0, -big, 10}, {x1, y0, 30}), box(4, {x0, y1, 10}, {x1, big, 30})};
+    c.walls = {box_between(1, {-big, -big, 10}, {x0, big, 30}), box_between(2, {x1, -big, 10}, {big, big, 30}),
+               box_between(3, {x0, -big, 10}, {x1, y0, 30}), box_between(4, {x0, y1, 10}, {x1, big, 30})};
     c.target = sphere(10, {12.5, 27.5, 1.0}, 0.5);
     c.cam = camera({12.5 + 0.002, 27.5 - 0.001, 39.9}, {0, 0, -1}, {0, 1, 0}, 30.0);
     cases.push_back(c);
@@ -275,7 +251,7 @@ std::vector<SlitCase> slit_cases() {
     // A slit between two boxes that touch voxel planes from both sides, with
     // the eye outside the grid.
     SlitCase c{"slit, eye outside", {}, {}, {}};
-    c.walls = {box(1, {-big, -big, 25}, {big, 15.0, 35}), box(2, {-big, 15.05, 25}, {big, big, 35})};
+    c.walls = {box_between(1, {-big, -big, 25}, {big, 15.0, 35}), box_between(2, {-big, 15.05, 25}, {big, big, 35})};
     c.target = sphere(10, {20.0, 15.025, 8.0}, 0.5);
     c.cam = camera({20.0, 15.025, 80.0}, {0, 0, -1}, {0, 1, 0}, 20.0, 1.0, 0.1, 500.0);
     cases.push_back(c);
@@ -329,7 +305,7 @@ TEST(HardCases, WallsThinnerThanAVoxel) {
   ObjectId id = 1;
   for (int i = 0; i < 5; ++i) {
     const double z = 6.0 + 7.0 * i;
-    scene.objects.push_back(box(id++, {2.0 + i, 2.0, z}, {30.0 - i, 38.0, z + thick[i]}));
+    scene.objects.push_back(box_between(id++, {2.0 + i, 2.0, z}, {30.0 - i, 38.0, z + thick[i]}));
   }
   Rng rng(8);
   for (int i = 0; i < 60; ++i) {
@@ -363,10 +339,10 @@ TEST(HardCases, EyeAndObjectsOutsideTheGrid) {
   for (const Vec3& c : {Vec3(60, 8, 32), Vec3(-30, 8, 32), Vec3(16, 40, 32), Vec3(16, -30, 32),
                         Vec3(16, 8, 100), Vec3(16, 8, -40), Vec3(-50, -50, -50)}) {
     scene.objects.push_back(sphere(id++, c, 3.0));
-    scene.objects.push_back(dynamic(box(id++, c + Vec3(4.0), c + Vec3(7.0)), 6.0));
+    scene.objects.push_back(dynamic(box_between(id++, c + Vec3(4.0), c + Vec3(7.0)), 6.0));
   }
   // A big one straddling the bounds.
-  scene.objects.push_back(box(id++, {-10, -10, 60}, {40, 20, 70}));
+  scene.objects.push_back(box_between(id++, {-10, -10, 60}, {40, 20, 70}));
   EngineHarness h(scene, {}, describe_scene(scene, 6) + " + outside objects");
   ASSERT_TRUE(h.status().ok) << h.status().str();
   const std::vector<Camera> cams = {
@@ -462,7 +438,7 @@ SceneDesc hidden_behind_wall(int n, double max_speed, std::uint64_t seed) {
   s.bounds_min = Vec3(0.0);
   s.bounds_max = Vec3(40.0);
   s.grid = glm::ivec3(10);
-  s.objects.push_back(box(1, {-20, -20, 18}, {60, 60, 26}));
+  s.objects.push_back(box_between(1, {-20, -20, 18}, {60, 60, 26}));
   Rng rng(seed);
   for (int i = 0; i < 4; ++i) s.objects.push_back(sphere(2 + static_cast<ObjectId>(i), rng.in_box({12, 12, 28}, {28, 28, 32}), 1.0));
   for (int i = 0; i < n; ++i) {
@@ -670,7 +646,7 @@ SceneDesc small_valid_scene() {
   s.bounds_min = Vec3(0.0);
   s.bounds_max = Vec3(10.0);
   s.grid = glm::ivec3(5);
-  s.objects = {sphere(1, {5, 5, 5}, 1.0), box(2, {1, 1, 1}, {2, 3, 4}),
+  s.objects = {sphere(1, {5, 5, 5}, 1.0), box_between(2, {1, 1, 1}, {2, 3, 4}),
                dynamic(sphere(3, {8, 8, 8}, 0.5), 2.0)};
   return s;
 }

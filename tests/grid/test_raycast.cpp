@@ -14,24 +14,6 @@
 namespace voxvis::test {
 namespace {
 
-ObjectDesc sphere(ObjectId id, Vec3 c, double r) {
-  ObjectDesc o;
-  o.id = id;
-  o.shape = Shape::Sphere;
-  o.center = c;
-  o.radius = r;
-  return o;
-}
-
-ObjectDesc box(ObjectId id, Vec3 c, Vec3 h) {
-  ObjectDesc o;
-  o.id = id;
-  o.shape = Shape::Box;
-  o.center = c;
-  o.half_extent = h;
-  return o;
-}
-
 Camera looking_down_minus_z() {
   Camera c;
   c.eye = Vec3(0.0);
@@ -88,19 +70,19 @@ TEST(Raycast, IntersectSphereAndBox) {
   EXPECT_DOUBLE_EQ(t0, 4.0);
   EXPECT_DOUBLE_EQ(t1, 6.0);
   EXPECT_FALSE(intersect(sphere(1, Vec3(0, 2.0001, -5), 2), Vec3(0.0), Vec3(0, 0, -1), &t0, &t1));
-  ASSERT_TRUE(intersect(box(1, Vec3(0, 0, -5), Vec3(1, 1, 1)), Vec3(0.0), Vec3(0, 0, -1), &t0, &t1));
+  ASSERT_TRUE(intersect(box_around(1, Vec3(0, 0, -5), Vec3(1, 1, 1)), Vec3(0.0), Vec3(0, 0, -1), &t0, &t1));
   EXPECT_DOUBLE_EQ(t0, 4.0);
   EXPECT_DOUBLE_EQ(t1, 6.0);
   // A flat box (half extent 0 along the ray) is hit at a single depth.
-  ASSERT_TRUE(intersect(box(1, Vec3(0, 0, -5), Vec3(1, 1, 0)), Vec3(0.0), Vec3(0, 0, -1), &t0, &t1));
+  ASSERT_TRUE(intersect(box_around(1, Vec3(0, 0, -5), Vec3(1, 1, 0)), Vec3(0.0), Vec3(0, 0, -1), &t0, &t1));
   EXPECT_DOUBLE_EQ(t0, 5.0);
   EXPECT_DOUBLE_EQ(t1, 5.0);
   // Ray parallel to a slab: inside it (on its face, too) or not.
-  ASSERT_TRUE(intersect(box(1, Vec3(0, 1, -5), Vec3(1, 1, 1)), Vec3(0.0), Vec3(0, 0, -1), &t0, &t1));
-  EXPECT_FALSE(intersect(box(1, Vec3(0, 1.5, -5), Vec3(1, 1, 1)), Vec3(0, -0.6, 0), Vec3(0, 0, -1),
+  ASSERT_TRUE(intersect(box_around(1, Vec3(0, 1, -5), Vec3(1, 1, 1)), Vec3(0.0), Vec3(0, 0, -1), &t0, &t1));
+  EXPECT_FALSE(intersect(box_around(1, Vec3(0, 1.5, -5), Vec3(1, 1, 1)), Vec3(0, -0.6, 0), Vec3(0, 0, -1),
                          &t0, &t1));
   // A flat box in the plane of a parallel ray contains the ray's segment.
-  ASSERT_TRUE(intersect(box(1, Vec3(0, 0, -5), Vec3(1, 0, 1)), Vec3(0.0), Vec3(0, 0, -1), &t0, &t1));
+  ASSERT_TRUE(intersect(box_around(1, Vec3(0, 0, -5), Vec3(1, 0, 1)), Vec3(0.0), Vec3(0, 0, -1), &t0, &t1));
   EXPECT_DOUBLE_EQ(t0, 4.0);
   // Eye inside: the interval straddles 0.
   ASSERT_TRUE(intersect(sphere(1, Vec3(0.0), 1), Vec3(0.0), Vec3(0, 0, -1), &t0, &t1));
@@ -119,14 +101,14 @@ TEST(Raycast, SingleSphereInFrontIsVisible) {
 
 TEST(Raycast, SphereBehindBigBoxIsHidden) {
   const std::vector<ObjectDesc> objs = {
-      box(1, Vec3(0, 0, -5), Vec3(50, 50, 0.5)),
+      box_around(1, Vec3(0, 0, -5), Vec3(50, 50, 0.5)),
       sphere(2, Vec3(0, 0, -20), 3.0),
   };
   EXPECT_EQ(visible_objects(objs, looking_down_minus_z()), Ids{1});
   // Open a window in the wall (four boxes around a hole): now visible.
   const std::vector<ObjectDesc> window = {
-      box(1, Vec3(-26, 0, -5), Vec3(25, 50, 0.5)),  box(3, Vec3(26, 0, -5), Vec3(25, 50, 0.5)),
-      box(4, Vec3(0, 26, -5), Vec3(1, 25, 0.5)),    box(5, Vec3(0, -26, -5), Vec3(1, 25, 0.5)),
+      box_around(1, Vec3(-26, 0, -5), Vec3(25, 50, 0.5)),  box_around(3, Vec3(26, 0, -5), Vec3(25, 50, 0.5)),
+      box_around(4, Vec3(0, 26, -5), Vec3(1, 25, 0.5)),    box_around(5, Vec3(0, -26, -5), Vec3(1, 25, 0.5)),
       sphere(2, Vec3(0, 0, -20), 3.0),
   };
   const Ids v = visible_objects(window, looking_down_minus_z());
@@ -166,7 +148,7 @@ TEST(Raycast, ObjectBeforeNearIsClippedAndDoesNotBlock) {
   c.near = 1.0;
   // A box covering the whole view at depth 0.5..0.9, wholly before near.
   const std::vector<ObjectDesc> objs = {
-      box(1, Vec3(0, 0, -0.7), Vec3(100, 100, 0.2)),
+      box_around(1, Vec3(0, 0, -0.7), Vec3(100, 100, 0.2)),
       sphere(2, Vec3(0, 0, -10), 1.0),
   };
   EXPECT_EQ(visible_objects(objs, c), Ids{2});
@@ -174,7 +156,7 @@ TEST(Raycast, ObjectBeforeNearIsClippedAndDoesNotBlock) {
   EXPECT_EQ(frustum_objects(objs, c), Ids{2});
   // An object straddling the near plane is visible (and blocks): entered at near.
   const std::vector<ObjectDesc> straddle = {
-      box(1, Vec3(0, 0, -1.0), Vec3(100, 100, 0.2)),
+      box_around(1, Vec3(0, 0, -1.0), Vec3(100, 100, 0.2)),
       sphere(2, Vec3(0, 0, -10), 1.0),
   };
   EXPECT_EQ(visible_objects(straddle, c), Ids{1});
@@ -188,8 +170,8 @@ TEST(Raycast, EyeInsideAnObjectSeesOnlyIt) {
 TEST(Raycast, TiesMakeBothVisible) {
   // Two boxes sharing the front face plane and overlapping in x: the ray
   // through the overlap enters both at the same depth.
-  const std::vector<ObjectDesc> objs = {box(1, Vec3(-0.5, 0, -5), Vec3(1, 1, 1)),
-                                        box(2, Vec3(0.5, 0, -5), Vec3(1, 1, 1))};
+  const std::vector<ObjectDesc> objs = {box_around(1, Vec3(-0.5, 0, -5), Vec3(1, 1, 1)),
+                                        box_around(2, Vec3(0.5, 0, -5), Vec3(1, 1, 1))};
   EXPECT_EQ(first_hit(objs, looking_down_minus_z(), 0.0, 0.0), (Ids{1, 2}));
 }
 
@@ -199,7 +181,7 @@ TEST(Raycast, CornerRaysReachTheFrustumEdge) {
   // with x = 1 hit it.
   Camera c = looking_down_minus_z();
   c.fov_y_deg = 90.0;
-  const std::vector<ObjectDesc> objs = {box(1, Vec3(10, 0, -10), Vec3(0.001, 1, 0.001))};
+  const std::vector<ObjectDesc> objs = {box_around(1, Vec3(10, 0, -10), Vec3(0.001, 1, 0.001))};
   RaySampling s;
   s.corners = true;
   EXPECT_EQ(visible_objects(objs, c, s), Ids{1});
@@ -298,7 +280,7 @@ TEST(Raycast, DeterministicForASeed) {
 
 TEST(Raycast, TransformedSceneGivesTheSameAnswerOnSimpleScenes) {
   const std::vector<ObjectDesc> objs = {
-      box(1, Vec3(0, 0, -5), Vec3(2, 2, 0.5)),
+      box_around(1, Vec3(0, 0, -5), Vec3(2, 2, 0.5)),
       sphere(2, Vec3(0, 0, -20), 3.0),
       sphere(3, Vec3(4, 1, -12), 1.0),
   };

@@ -391,4 +391,32 @@ std::string describe_scene(const SceneDesc& scene, std::uint64_t seed) {
   return buf;
 }
 
+ObjectDesc sphere(ObjectId id, Vec3 center, double radius) {
+  ObjectDesc o;
+  o.id = id;
+  o.shape = Shape::Sphere;
+  o.center = center;
+  o.radius = radius;
+  return o;
+}
+
+ObjectDesc box_around(ObjectId id, Vec3 center, Vec3 half_extent) {
+  ObjectDesc o;
+  o.id = id;
+  o.shape = Shape::Box;
+  o.center = center;
+  o.half_extent = half_extent;
+  return o;
+}
+
+ObjectDesc box_between(ObjectId id, Vec3 lo, Vec3 hi) {
+  return box_around(id, 0.5 * (lo + hi), 0.5 * (hi - lo));
+}
+
+ObjectDesc dynamic(ObjectDesc o, double max_speed) {
+  o.dynamic = true;
+  o.max_speed = max_speed;
+  return o;
+}
+
 }  // namespace voxvis::test

@@ -134,4 +134,12 @@ std::vector<Move> transform_moves(const std::vector<Move>& moves, double scale, 
 /// "seed=..., grid=..., bounds=..." for failure messages.
 std::string describe_scene(const SceneDesc& scene, std::uint64_t seed);
 
+/// Object builders for hand-written test scenes.
+ObjectDesc sphere(ObjectId id, Vec3 center, double radius);
+/// A box from its corners.
+ObjectDesc box_between(ObjectId id, Vec3 lo, Vec3 hi);
+/// A box from its centre and half extents.
+ObjectDesc box_around(ObjectId id, Vec3 center, Vec3 half_extent);
+ObjectDesc dynamic(ObjectDesc o, double max_speed);
+
 }  // namespace voxvis::test
