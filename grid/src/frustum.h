@@ -18,7 +18,6 @@ namespace voxvis::detail {
 struct Plane {
   Vec3 n{0.0};
   double d = 0.0;
-  double eval(const Vec3& x) const { return n.x * x.x + n.y * x.y + n.z * x.z + d; }
   /// Largest value over the box [lo, hi].
   double box_max(const Vec3& lo, const Vec3& hi) const {
     return d + (n.x > 0 ? n.x * hi.x : n.x * lo.x) + (n.y > 0 ? n.y * hi.y : n.y * lo.y) +

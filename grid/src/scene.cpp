@@ -122,8 +122,8 @@ void Scratch::Impl::begin(std::size_t voxels, std::size_t objects) {
   if (stamp.size() < voxels) stamp.resize(voxels, 0);
   if (obj_mark.size() < objects) obj_mark.resize(objects, 0);
   if (obj_seen.size() < objects) obj_seen.resize(objects, 0);
-  // The frame number lives in the upper 30 bits of a stamp; start over
-  // before it wraps so that no stale stamp can ever match.
+  // Start the frame counter over before it wraps, so that no stale object
+  // mark can ever match (stamp tags cycle separately, below).
   if (++frame == std::numeric_limits<std::uint32_t>::max()) {
     std::fill(obj_mark.begin(), obj_mark.end(), 0u);
     std::fill(obj_seen.begin(), obj_seen.end(), 0u);

@@ -686,23 +686,18 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
 
   // An eye so far away that shell indices lose precision: fall back to
   // frustum culling of everything, which is always conservative.
-  {
-    if (eye_too_far(s.to_grid(camera.eye))) {
-      for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
-        Obj& o = s.objs[slot];
-        if (o.under_tbv) {
-          if (wf.may_intersect_box(o.tbv_lo, o.tbv_hi)) {
-            s.reveal(slot);
-            ++st.tbvs_revealed;
-            wake.push_back(slot);
-          } else {
-            continue;
-          }
-        }
-        if (wf.may_intersect_box(o.box_lo(), o.box_hi()) && w.obj_mark[slot] != w.frame) {
-          w.obj_mark[slot] = w.frame;
-          w.pvs.push_back(slot);
-        }
+  if (eye_too_far(s.to_grid(camera.eye))) {
+    for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
+      Obj& o = s.objs[slot];
+      if (o.under_tbv) {
+        if (!wf.may_intersect_box(o.tbv_lo, o.tbv_hi)) continue;
+        s.reveal(slot);
+        ++st.tbvs_revealed;
+        wake.push_back(slot);
+      }
+      if (wf.may_intersect_box(o.box_lo(), o.box_hi()) && w.obj_mark[slot] != w.frame) {
+        w.obj_mark[slot] = w.frame;
+        w.pvs.push_back(slot);
       }
     }
   }
