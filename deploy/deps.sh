@@ -6,6 +6,7 @@ VOXVIS_PACKAGES=(
   build-essential cmake ninja-build pkg-config
   libglm-dev nlohmann-json3-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc prometheus-cpp-dev
 )
 
 voxvis_ensure_deps() {

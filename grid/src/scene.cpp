@@ -331,6 +331,7 @@ void Scene::Impl::make_tbv(std::uint32_t slot, double now) {
   o.tbv_center = o.center;
   o.tbv_expiry = o.max_speed > 0.0 ? now + period : std::numeric_limits<double>::infinity();
   o.under_tbv = true;
+  ++wake_epoch;
   ++o.tbv_gen;
   ++o.tbv_epoch;
   if (std::isfinite(o.tbv_expiry)) expiry.push({o.tbv_expiry, slot, o.tbv_epoch});
@@ -346,8 +347,10 @@ void Scene::Impl::make_tbv(std::uint32_t slot, double now) {
 void Scene::Impl::renew_tbv(std::uint32_t slot, double now) {
   Obj& o = objs[slot];
   if (o.center != o.tbv_center) {
+    const std::uint64_t epoch = wake_epoch;  // Still under a TBV: no wake change.
     drop_tbv(slot);
     make_tbv(slot, now);
+    wake_epoch = epoch;
     return;
   }
   // The object has not moved since its TBV was made (the common case for a
@@ -386,6 +389,7 @@ void Scene::Impl::drop_tbv(std::uint32_t slot) {
   brick_remove(o.tbv_voxels);
   list_remove(outside_tbvs, o.tbv_outside_pos, true);
   o.under_tbv = false;
+  ++wake_epoch;
   ++o.tbv_gen;    // Its brick entries are stale from now on,
   ++o.tbv_epoch;  // and so is its expiry entry.
   --tbv_count;
@@ -598,6 +602,17 @@ Status Scene::apply_moves(double t, std::span<const Move> moves, MoveReport* rep
     if (report) ++report->applied;
   }
   return Status::Ok();
+}
+
+std::uint64_t Scene::wake_epoch() const { return impl_->wake_epoch; }
+
+std::vector<Move> Scene::dynamic_centers() const {
+  std::vector<Move> out;
+  out.reserve(impl_->dynamic_count);
+  for (const Obj& o : impl_->objs)
+    if (o.dynamic) out.push_back(Move{o.id, o.center});
+  std::sort(out.begin(), out.end(), [](const Move& a, const Move& b) { return a.id < b.id; });
+  return out;
 }
 
 std::vector<ObjectId> Scene::wake_set() const {

@@ -1,0 +1,59 @@
+// metrics.h — Prometheus metrics for operators (prometheus-cpp, pull mode).
+//
+// Served at http://ADDR/metrics when the server runs with --metrics ADDR.
+// Every family is labelled by scene ("scene") where it applies:
+//   voxvis_frames_total{scene}                counter
+//   voxvis_frame_latency_seconds{scene}       histogram: request received to answer handed to gRPC
+//   voxvis_frame_engine_seconds{scene}        histogram: engine time of a frame
+//   voxvis_pvs_size{scene}                    histogram: objects per PVS
+//   voxvis_voxels_visited{scene}              histogram: voxels per frame
+//   voxvis_frames_skipped_total{scene}        counter: requests replaced by newer ones
+//   voxvis_moves_total{scene}                 counter: moves applied
+//   voxvis_wake_size{scene}                   gauge: current wake-list size
+//   voxvis_tbvs_active{scene}                 gauge
+//   voxvis_viewers{scene}                     gauge: open viewer streams
+//   voxvis_scenes                             gauge
+//   voxvis_errors_total{method, code}         counter: calls ended with a non-OK status
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include <grpcpp/grpcpp.h>
+
+#include "voxvis/scene.h"
+
+namespace voxvis::server {
+
+/// Per-scene metric handles; cheap to use from any thread (prometheus-cpp
+/// metrics are atomic).
+class SceneMetrics {
+ public:
+  virtual ~SceneMetrics() = default;
+  virtual void frame(const FrameStats& stats, double latency_seconds) = 0;
+  virtual void skipped(std::uint32_t n) = 0;
+  virtual void moves(std::uint32_t n) = 0;
+  virtual void wake_size(std::size_t n) = 0;
+  virtual void tbvs_active(std::uint32_t n) = 0;
+  virtual void viewers(int delta) = 0;
+};
+
+class Metrics {
+ public:
+  virtual ~Metrics() = default;
+  /// Handles for one scene; removed from the registry when the scene is
+  /// deleted (remove_scene).
+  virtual std::shared_ptr<SceneMetrics> scene(const std::string& scene_id) = 0;
+  virtual void remove_scene(const std::string& scene_id) = 0;
+  virtual void scenes(std::size_t n) = 0;
+  /// Counts a call that ended with a non-OK status.
+  virtual void error(const char* method, grpc::StatusCode code) = 0;
+};
+
+/// Metrics served over HTTP at `address` ("127.0.0.1:9464"). Throws
+/// std::runtime_error naming the address when it cannot listen.
+std::unique_ptr<Metrics> make_prometheus_metrics(const std::string& address);
+/// Metrics that record nothing (no --metrics).
+std::unique_ptr<Metrics> make_null_metrics();
+
+}  // namespace voxvis::server
