@@ -1,0 +1,180 @@
+#include "convert.h"
+
+#include <cmath>
+#include <cstdio>
+#include <unordered_set>
+
+namespace voxvis::server {
+namespace {
+
+std::string num(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+
+Status vec_check(const v1::Vec3& v, const std::string& field, Vec3* out) {
+  *out = Vec3(v.x(), v.y(), v.z());
+  if (!std::isfinite(out->x) || !std::isfinite(out->y) || !std::isfinite(out->z))
+    return Status::Error(field, "must be three finite numbers");
+  if (std::fmax(std::fabs(out->x), std::fmax(std::fabs(out->y), std::fabs(out->z))) > kMaxCoordinate)
+    return Status::Error(field, "magnitude must be at most " + num(kMaxCoordinate));
+  return Status::Ok();
+}
+
+Status vec_required(bool present, const v1::Vec3& v, const std::string& field, Vec3* out) {
+  if (!present) return Status::Error(field, "missing");
+  return vec_check(v, field, out);
+}
+
+}  // namespace
+
+Status desc_from_proto(const v1::SceneDescription& in, SceneDesc* out) {
+  *out = SceneDesc{};
+  const std::string p = "description.";
+  if (Status s = vec_required(in.has_bounds_min(), in.bounds_min(), p + "bounds_min", &out->bounds_min); !s)
+    return s;
+  if (Status s = vec_required(in.has_bounds_max(), in.bounds_max(), p + "bounds_max", &out->bounds_max); !s)
+    return s;
+  for (int a = 0; a < 3; ++a)
+    if (!(out->bounds_min[a] < out->bounds_max[a]))
+      return Status::Error(p + "bounds_max", "must be > bounds_min on every axis");
+  if (in.has_grid()) {
+    const std::uint32_t g[3] = {in.grid().nx(), in.grid().ny(), in.grid().nz()};
+    const char* names[3] = {"nx", "ny", "nz"};
+    for (int a = 0; a < 3; ++a)
+      if (g[a] < 1 || g[a] > 8192)
+        return Status::Error(p + "grid." + names[a], "must be in [1, 8192], got " + std::to_string(g[a]));
+    out->grid = glm::ivec3(static_cast<int>(g[0]), static_cast<int>(g[1]), static_cast<int>(g[2]));
+  }
+  out->objects.reserve(static_cast<std::size_t>(in.objects_size()));
+  for (int i = 0; i < in.objects_size(); ++i) {
+    const v1::Object& o = in.objects(i);
+    const std::string f = p + "objects[" + std::to_string(i) + "]";
+    ObjectDesc d;
+    d.id = o.id();
+    d.dynamic = o.dynamic();
+    switch (o.shape_case()) {
+      case v1::Object::kSphere: {
+        d.shape = Shape::Sphere;
+        if (Status s = vec_required(o.sphere().has_center(), o.sphere().center(), f + ".center", &d.center); !s)
+          return s;
+        d.radius = o.sphere().radius();
+        if (!std::isfinite(d.radius) || !(d.radius > 0.0))
+          return Status::Error(f + ".radius", "must be > 0, got " + num(d.radius));
+        if (d.radius > kMaxCoordinate)
+          return Status::Error(f + ".radius", "must be at most " + num(kMaxCoordinate));
+        break;
+      }
+      case v1::Object::kBox: {
+        d.shape = Shape::Box;
+        Vec3 lo, hi;
+        if (Status s = vec_required(o.box().has_min(), o.box().min(), f + ".min", &lo); !s) return s;
+        if (Status s = vec_required(o.box().has_max(), o.box().max(), f + ".max", &hi); !s) return s;
+        for (int a = 0; a < 3; ++a)
+          if (!(lo[a] <= hi[a])) return Status::Error(f + ".max", "must be >= min on every axis");
+        d.center = (lo + hi) * 0.5;
+        d.half_extent = (hi - lo) * 0.5;
+        break;
+      }
+      default:
+        return Status::Error(f, "no shape: set sphere or box");
+    }
+    const double speed = o.max_speed();
+    if (d.dynamic) {
+      if (!std::isfinite(speed) || !(speed >= 0.0))
+        return Status::Error(f + ".max_speed", "must be >= 0, got " + num(speed));
+      if (speed > kMaxCoordinate) return Status::Error(f + ".max_speed", "must be at most " + num(kMaxCoordinate));
+      d.max_speed = speed;
+    } else if (speed != 0.0) {
+      return Status::Error(f + ".max_speed", "only dynamic objects have a max_speed");
+    }
+    out->objects.push_back(d);
+  }
+  return Status::Ok();
+}
+
+Status desc_from_json(const std::string& text, SceneDesc* out) {
+  FormatError err;
+  if (!parse_scene(text, "scene_json", out, &err)) return Status::Error("", err.str());
+  return Status::Ok();
+}
+
+Status scene_create_error(const Status& engine, bool from_json, const std::string& json) {
+  if (!from_json) return Status::Error("description." + engine.field, engine.message);
+  FormatError e{"scene_json", scene_field_line(json, engine.field), engine.field, engine.message};
+  return Status::Error("", e.str());
+}
+
+Status camera_from_proto(const v1::Camera& in, bool present, Camera* out) {
+  if (!present) return Status::Error("camera", "missing");
+  const auto vec = [](const v1::Vec3& v) { return Vec3(v.x(), v.y(), v.z()); };
+  if (!in.has_eye()) return Status::Error("camera.eye", "missing");
+  if (!in.has_dir()) return Status::Error("camera.dir", "missing");
+  if (!in.has_up()) return Status::Error("camera.up", "missing");
+  out->eye = vec(in.eye());
+  out->dir = vec(in.dir());
+  out->up = vec(in.up());
+  out->fov_y_deg = in.fov_y_deg();
+  out->aspect = in.aspect();
+  out->near = in.near();
+  out->far = in.far();
+  Status s = validate_camera(*out);
+  if (!s) return Status::Error("camera." + s.field, s.message);
+  return s;
+}
+
+Status moves_from_proto(const v1::MoveBatch& in, std::vector<Move>* out) {
+  out->clear();
+  out->reserve(static_cast<std::size_t>(in.moves_size()));
+  std::unordered_set<ObjectId> seen;
+  seen.reserve(static_cast<std::size_t>(in.moves_size()));
+  for (int i = 0; i < in.moves_size(); ++i) {
+    const v1::Move& m = in.moves(i);
+    const std::string f = "batch.moves[" + std::to_string(i) + "]";
+    if (!seen.insert(m.id()).second)
+      return Status::Error(f + ".id", "object " + std::to_string(m.id()) + " appears twice in one batch");
+    Move mv;
+    mv.id = m.id();
+    if (Status s = vec_required(m.has_center(), m.center(), f + ".center", &mv.center); !s) return s;
+    out->push_back(mv);
+  }
+  return Status::Ok();
+}
+
+void vec_to_proto(const Vec3& in, v1::Vec3* out) {
+  out->set_x(in.x);
+  out->set_y(in.y);
+  out->set_z(in.z);
+}
+
+void stats_to_proto(const FrameStats& in, v1::FrameStats* out) {
+  out->set_time_us(in.time_us);
+  out->set_voxels_visited(in.voxels_visited);
+  out->set_shells(in.shells);
+  out->set_objects_discretized(in.objects_discretized);
+  out->set_tbvs_created(in.tbvs_created);
+  out->set_tbvs_revealed(in.tbvs_revealed);
+  out->set_tbvs_expired(in.tbvs_expired);
+  out->set_tbvs_active(in.tbvs_active);
+  out->set_speed_violations(in.speed_violations);
+  out->set_outside_tested(in.outside_tested);
+  out->set_pvs_size(in.pvs_size);
+  out->set_early_exit(in.early_exit);
+}
+
+std::uint64_t estimate_scene_bytes(const SceneDesc& desc, const glm::ivec3& res, unsigned workers) {
+  const std::uint64_t voxels =
+      std::uint64_t(res.x) * std::uint64_t(res.y) * std::uint64_t(res.z);
+  // Per voxel: flags byte, CSR offset (4), dynamic opaque count (4 when any
+  // object moves), and 4 bytes of each worker's scratch layers; bricks and
+  // id lists per object. Deliberately a little high: the budget is a promise.
+  bool any_dynamic = false;
+  for (const ObjectDesc& o : desc.objects) any_dynamic |= o.dynamic;
+  const std::uint64_t per_voxel = 1 + 4 + (any_dynamic ? 4 : 0) + 4ull * workers;
+  const std::uint64_t bricks = (voxels + 63) / 64 * 16;
+  const std::uint64_t per_object = 256;
+  return voxels * per_voxel + bricks + desc.objects.size() * per_object + (1u << 16);
+}
+
+}  // namespace voxvis::server

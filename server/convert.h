@@ -1,0 +1,42 @@
+// convert.h — wire messages to engine values and back, with the checks of the
+// batch formats. Errors are Status values whose field is the message path
+// ("description.objects[3].radius", "camera.fov_y_deg", "batch.moves[0].id").
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "voxvis/format.h"
+#include "voxvis/scene.h"
+#include "voxvis/v1/voxvis.pb.h"
+
+namespace voxvis::server {
+
+/// A SceneDescription message as the engine's input. Checks what the scene
+/// file's parser checks that Scene::create does not (a shape is set, box
+/// corners ordered, coordinates within kMaxCoordinate, max_speed only on
+/// dynamic objects, grid within 1..8192).
+Status desc_from_proto(const v1::SceneDescription& in, SceneDesc* out);
+
+/// A voxvis-scene/1 document sent as text: parse errors carry its line
+/// ("scene_json:12: objects[3].radius: must be > 0").
+Status desc_from_json(const std::string& text, SceneDesc* out);
+
+/// Puts an engine Status from Scene::create on the request's field path.
+Status scene_create_error(const Status& engine, bool from_json, const std::string& json);
+
+/// A camera message: present, then validate_camera's checks.
+Status camera_from_proto(const v1::Camera& in, bool present, Camera* out);
+
+/// A batch's moves: each id at most once, centre present and finite. (Unknown
+/// and static ids are the engine's to refuse; it names them the same way.)
+Status moves_from_proto(const v1::MoveBatch& in, std::vector<Move>* out);
+
+void stats_to_proto(const FrameStats& in, v1::FrameStats* out);
+void vec_to_proto(const Vec3& in, v1::Vec3* out);
+
+/// Estimated bytes of a scene at resolution `res` served by `workers` worker
+/// threads: grid layers, per-worker scratch layers, id lists, objects.
+std::uint64_t estimate_scene_bytes(const SceneDesc& desc, const glm::ivec3& res, unsigned workers);
+
+}  // namespace voxvis::server

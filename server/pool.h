@@ -1,0 +1,74 @@
+// pool.h — the worker pool that runs all PVS and move work, and strands that
+// serialize the work of one scene.
+//
+// A Scene is not internally synchronized (grid/include/voxvis/scene.h), so
+// every operation on it runs as a job of the scene's Strand: jobs of one
+// strand run one at a time, in the order posted, on any worker; jobs of
+// different strands run in parallel. A strand that has work occupies one
+// worker at a time and hands the worker back after a few jobs, so one busy
+// scene cannot starve the others, and no worker ever blocks on a scene lock.
+// Each worker owns one Scratch (per-frame working memory), reused across
+// scenes.
+#pragma once
+
+#include <condition_variable>
+#include <cstddef>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "voxvis/scene.h"
+
+namespace voxvis::server {
+
+using Job = std::function<void(Scratch&)>;
+
+class WorkerPool {
+ public:
+  /// Starts `threads` workers (at least 1).
+  explicit WorkerPool(unsigned threads);
+  /// Runs every job already submitted, then joins the workers.
+  ~WorkerPool();
+  WorkerPool(const WorkerPool&) = delete;
+  WorkerPool& operator=(const WorkerPool&) = delete;
+
+  void submit(Job job);
+  /// Blocks until no job is queued or running (jobs may submit more jobs).
+  void drain();
+  unsigned threads() const { return static_cast<unsigned>(workers_.size()); }
+
+ private:
+  void run(unsigned index);
+
+  std::mutex mu_;
+  std::condition_variable cv_;       // Guarded by mu_: new job or stop.
+  std::condition_variable idle_cv_;  // Guarded by mu_: queue empty and no job running.
+  std::deque<Job> queue_;            // Guarded by mu_.
+  unsigned running_ = 0;             // Guarded by mu_.
+  bool stop_ = false;                // Guarded by mu_.
+  std::vector<std::thread> workers_;
+};
+
+/// Serializes jobs on a pool. Must outlive its queued jobs: hold it in a
+/// shared_ptr and keep it alive from the jobs (Strand::post does).
+class Strand : public std::enable_shared_from_this<Strand> {
+ public:
+  explicit Strand(WorkerPool& pool) : pool_(pool) {}
+  void post(Job job);
+
+ private:
+  void run_some(Scratch& scratch);
+
+  /// Jobs a strand runs before handing its worker back (fairness between scenes).
+  static constexpr int kBatch = 4;
+
+  WorkerPool& pool_;
+  std::mutex mu_;
+  std::deque<Job> queue_;  // Guarded by mu_.
+  bool scheduled_ = false; // Guarded by mu_: a run_some is submitted or running.
+};
+
+}  // namespace voxvis::server

@@ -1,0 +1,221 @@
+#include "server.h"
+
+#include <unistd.h>
+
+#include <chrono>
+#include <condition_variable>
+#include <fstream>
+#include <mutex>
+#include <sstream>
+#include <thread>
+
+#include <grpcpp/ext/proto_server_reflection_plugin.h>
+#include <grpcpp/grpcpp.h>
+#include <grpcpp/health_check_service_interface.h>
+
+#include "auth.h"
+#include "metrics.h"
+#include "pool.h"
+#include "service.h"
+#include "store.h"
+
+namespace voxvis::server {
+namespace {
+
+bool read_file(const std::string& path, std::string* out) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return false;
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  *out = ss.str();
+  return static_cast<bool>(in) || in.eof();
+}
+
+/// A scene id from a file name: its stem, with characters outside
+/// [A-Za-z0-9._-] replaced by '_'.
+std::string id_from_path(const std::string& path) {
+  std::string stem = path;
+  if (auto slash = stem.find_last_of('/'); slash != std::string::npos) stem = stem.substr(slash + 1);
+  if (auto dot = stem.find_last_of('.'); dot != std::string::npos && dot > 0) stem = stem.substr(0, dot);
+  for (char& c : stem)
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '_' || c == '-')) c = '_';
+  if (stem.size() > 64) stem.resize(64);
+  if (stem.empty() || stem[0] == '.') stem = "scene" + stem;
+  return stem;
+}
+
+class ServerImpl final : public Server {
+ public:
+  ~ServerImpl() override { shutdown(); }
+
+  bool init(const ServerConfig& c, Log log, std::string* error) {
+    config_ = c;
+    log_ = std::move(log);
+    if (config_.data_dir.empty()) return fail(error, "--data-dir is required");
+    if (!(config_.save_period_s > 0.0)) return fail(error, "--save-period must be > 0 seconds");
+    if (config_.tls_cert.empty() != config_.tls_key.empty())
+      return fail(error, "--tls-cert and --tls-key go together");
+    unsigned workers = config_.workers ? config_.workers : std::thread::hardware_concurrency();
+    if (workers == 0) workers = 2;
+    std::uint64_t budget = config_.memory_budget_bytes;
+    if (budget == 0) {
+      const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
+      budget = pages > 0 && page > 0 ? std::uint64_t(pages) * std::uint64_t(page) / 2 : (4ull << 30);
+    }
+
+    if (!config_.tokens_file.empty()) {
+      if (Status s = tokens_.load(config_.tokens_file); !s) return fail(error, "--tokens: " + s.str());
+    }
+    if (Status s = store_.open(config_.data_dir); !s) return fail(error, "--data-dir: " + s.str());
+    try {
+      metrics_ = config_.metrics_address.empty() ? make_null_metrics()
+                                                 : make_prometheus_metrics(config_.metrics_address);
+    } catch (const std::exception& e) {
+      return fail(error, std::string("--metrics: ") + e.what());
+    }
+
+    pool_ = std::make_unique<WorkerPool>(workers);
+    ServiceConfig sc;
+    sc.scene_options = config_.scene_options;
+    sc.memory_budget_bytes = budget;
+    sc.workers = workers;
+    service_ = std::make_unique<Service>(sc, *pool_, store_, tokens_, *metrics_, log_);
+
+    // Scenes acknowledged in earlier runs, at their last saved positions.
+    for (const StoredScene& st : store_.load_all(log_)) {
+      const std::vector<Move>* pos = st.t ? &st.positions : nullptr;
+      if (Status s = service_->load_scene(st.id, st.json, st.json_path, pos, st.t, false); !s)
+        return fail(error, "cannot load stored scene '" + st.id + "': " + s.str() +
+                               " (move the file away to start without it)");
+      log_("loaded scene '" + st.id + "' from the data directory");
+    }
+    for (const std::string& path : config_.scene_files) {
+      const std::string id = id_from_path(path);
+      if (service_->has_scene(id)) {
+        log_("--scene " + path + ": scene '" + id +
+             "' is already in the data directory; kept (delete it to load the file again)");
+        continue;
+      }
+      std::string text;
+      if (!read_file(path, &text)) return fail(error, "--scene " + path + ": cannot read the file");
+      if (Status s = service_->load_scene(id, text, path, nullptr, std::nullopt, true); !s)
+        return fail(error, "--scene: " + s.str());
+      log_("created scene '" + id + "' from " + path);
+    }
+
+    std::shared_ptr<grpc::ServerCredentials> creds;
+    if (!config_.tls_cert.empty()) {
+      grpc::SslServerCredentialsOptions opts;
+      grpc::SslServerCredentialsOptions::PemKeyCertPair pair;
+      if (!read_file(config_.tls_key, &pair.private_key))
+        return fail(error, "--tls-key " + config_.tls_key + ": cannot read the file");
+      if (!read_file(config_.tls_cert, &pair.cert_chain))
+        return fail(error, "--tls-cert " + config_.tls_cert + ": cannot read the file");
+      opts.pem_key_cert_pairs.push_back(pair);
+      creds = grpc::SslServerCredentials(opts);
+    } else {
+      creds = grpc::InsecureServerCredentials();
+    }
+
+    grpc::EnableDefaultHealthCheckService(true);
+    grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+    grpc::ServerBuilder builder;
+    builder.AddListeningPort(config_.listen, creds, &port_);
+    builder.RegisterService(service_.get());
+    builder.SetMaxReceiveMessageSize(config_.max_message_bytes);
+    builder.SetMaxSendMessageSize(config_.max_message_bytes);
+    // Dead peers are noticed (and their streams freed) within a minute.
+    builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIME_MS, 30000);
+    builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 10000);
+    builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, 10000);
+    builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
+    server_ = builder.BuildAndStart();
+    if (!server_ || port_ == 0) return fail(error, "--listen " + config_.listen + ": cannot listen there");
+    server_->GetHealthCheckService()->SetServingStatus(true);
+
+    saver_ = std::thread([this] { save_loop(); });
+    if (!tokens_.enabled()) log_("no --tokens: every client may create, delete, move and view");
+    log_("listening on port " + std::to_string(port_) + " (" + std::to_string(workers) +
+         " workers, memory budget " + std::to_string(budget >> 20) + " MiB)");
+    if (!config_.port_file.empty()) {
+      const std::string tmp = config_.port_file + ".tmp";
+      std::ofstream(tmp) << port_ << "\n";
+      std::rename(tmp.c_str(), config_.port_file.c_str());
+    }
+    return true;
+  }
+
+  int port() const override { return port_; }
+
+  void shutdown() override {
+    std::lock_guard<std::mutex> once(shutdown_mu_);
+    if (stopped_) return;
+    stopped_ = true;
+    if (server_) {
+      server_->GetHealthCheckService()->SetServingStatus(false);
+      service_->begin_shutdown();
+      const auto grace = std::chrono::system_clock::now() +
+                         std::chrono::milliseconds(static_cast<long>(config_.shutdown_grace_s * 1000));
+      server_->Shutdown(grace);
+    }
+    if (pool_) pool_->drain();
+    {
+      std::lock_guard<std::mutex> lock(saver_mu_);
+      saver_stop_ = true;
+    }
+    saver_cv_.notify_all();
+    if (saver_.joinable()) saver_.join();
+    if (service_) service_->save_positions(true);
+    if (server_) {
+      server_->Wait();
+      log_("stopped");
+    }
+  }
+
+ private:
+  bool fail(std::string* error, const std::string& message) {
+    *error = message;
+    return false;
+  }
+
+  void save_loop() {
+    std::unique_lock<std::mutex> lock(saver_mu_);
+    const auto period = std::chrono::duration<double>(config_.save_period_s);
+    while (!saver_cv_.wait_for(lock, period, [this] { return saver_stop_; })) {
+      lock.unlock();
+      service_->save_positions(false);
+      lock.lock();
+    }
+  }
+
+  ServerConfig config_;
+  Log log_;
+  TokenTable tokens_;
+  SceneStore store_;
+  std::unique_ptr<Metrics> metrics_;
+  std::unique_ptr<WorkerPool> pool_;
+  std::unique_ptr<Service> service_;
+  std::unique_ptr<grpc::Server> server_;
+  int port_ = 0;
+
+  std::thread saver_;
+  std::mutex saver_mu_;
+  std::condition_variable saver_cv_;
+  bool saver_stop_ = false;  // Guarded by saver_mu_.
+
+  std::mutex shutdown_mu_;
+  bool stopped_ = false;
+};
+
+}  // namespace
+
+std::unique_ptr<Server> Server::start(const ServerConfig& config, Log log, std::string* error) {
+  auto s = std::make_unique<ServerImpl>();
+  if (!s->init(config, std::move(log), error)) {
+    s->shutdown();
+    return nullptr;
+  }
+  return s;
+}
+
+}  // namespace voxvis::server

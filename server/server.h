@@ -1,0 +1,46 @@
+// server.h — voxvis-server assembled: configuration, start-up (data directory,
+// --scene files, TLS, tokens, metrics), the periodic position saver, and
+// graceful shutdown. main.cpp only parses arguments and waits for a signal.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "voxvis/scene.h"
+
+namespace voxvis::server {
+
+struct ServerConfig {
+  std::string listen = "127.0.0.1:50051";  ///< host:port; port 0 picks a free one.
+  std::string data_dir;                     ///< Required: scenes and positions live here.
+  std::vector<std::string> scene_files;     ///< Created at start unless the data dir has the id.
+  std::string tls_cert, tls_key;            ///< PEM files; both or neither.
+  std::string tokens_file;                  ///< Empty: no authentication.
+  std::string metrics_address;              ///< Empty: no Prometheus endpoint.
+  std::string port_file;                    ///< Written with the bound port once serving.
+  std::uint64_t memory_budget_bytes = 0;    ///< 0: half of the machine's memory.
+  double save_period_s = 2.0;               ///< Seconds between position saves, > 0.
+  unsigned workers = 0;                     ///< 0: one per core.
+  int max_message_bytes = 64 << 20;         ///< Largest message accepted, bytes.
+  double shutdown_grace_s = 5.0;            ///< How long in-flight calls may take at shutdown.
+  SceneOptions scene_options;
+};
+
+class Server {
+ public:
+  using Log = std::function<void(const std::string&)>;
+  /// Starts serving. On error returns null and sets `error` to a message that
+  /// names the option or file at fault.
+  static std::unique_ptr<Server> start(const ServerConfig& config, Log log, std::string* error);
+  virtual ~Server() = default;
+  /// The port bound (useful with port 0).
+  virtual int port() const = 0;
+  /// Graceful shutdown: refuse new calls, answer in-flight frames, end the
+  /// streams with UNAVAILABLE, save positions. Idempotent.
+  virtual void shutdown() = 0;
+};
+
+}  // namespace voxvis::server

@@ -1,0 +1,178 @@
+// service.h — the Visibility service (proto/voxvis/v1/voxvis.proto) on gRPC's
+// callback API, and the scenes it serves.
+//
+// Threads: gRPC's callback threads run the reactors' reactions, which only
+// check messages, update per-stream state under the stream's mutex, and post
+// work; they never wait for a scene. Every operation on a Scene runs as a job
+// of that scene's Strand on the WorkerPool (pool.h). A stream has at most one
+// job and one write in flight, and keeps at most one newer request and one
+// newer answer: memory per stream is bounded whatever the client does.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <unordered_set>
+#include <vector>
+
+#include <grpcpp/grpcpp.h>
+
+#include "auth.h"
+#include "metrics.h"
+#include "pool.h"
+#include "store.h"
+#include "voxvis/scene.h"
+#include "voxvis/v1/voxvis.grpc.pb.h"
+
+namespace voxvis::server {
+
+/// The wake list at one moment: ascending ids, and a version that increases
+/// with every change.
+struct WakeSnapshot {
+  std::uint64_t version = 0;
+  std::vector<ObjectId> ids;
+};
+
+class SimReactor;
+
+/// Where a scene delivers wake-list changes to one Simulate stream. The
+/// stream clears `reactor` (under `mu`) before it is deleted.
+struct WakeSink {
+  std::mutex mu;
+  SimReactor* reactor = nullptr;  // Guarded by mu.
+};
+
+/// A scene being served. Fields marked "strand" are touched only by jobs of
+/// `strand` (or when the pool is idle at start and shutdown).
+struct SceneEntry {
+  std::string id;
+  std::shared_ptr<Strand> strand;
+  std::unique_ptr<Scene> scene;  // strand
+  std::shared_ptr<SceneMetrics> metrics;
+  std::uint64_t memory_bytes = 0;
+  GridSpec grid;  // Immutable copies for statistics.
+  std::uint32_t objects = 0;
+  std::uint32_t dynamic_objects = 0;
+
+  std::atomic<bool> deleted{false};
+  std::atomic<bool> positions_dirty{false};
+  std::atomic<std::uint64_t> frames_served{0};
+  std::atomic<std::uint64_t> moves_applied{0};
+  std::atomic<std::uint32_t> viewers{0};
+  std::atomic<std::uint32_t> simulators{0};
+  std::atomic<std::uint32_t> tbvs_active{0};
+  std::atomic<std::uint32_t> wake_size{0};
+  std::atomic<double> time{0.0};
+
+  // Wake list, strand.
+  std::uint64_t wake_epoch_seen = ~std::uint64_t{0};
+  std::shared_ptr<const WakeSnapshot> wake;
+  std::vector<std::shared_ptr<WakeSink>> sinks;
+
+  /// Recomputes the wake list when the engine says it may have changed and
+  /// hands a new snapshot to every Simulate stream of the scene. Strand.
+  void refresh_wake();
+};
+
+/// Server-wide settings (voxvis-server's options; docs/server.md).
+struct ServiceConfig {
+  SceneOptions scene_options;
+  std::uint64_t memory_budget_bytes = 0;  ///< Sum of scenes' estimated bytes allowed.
+  unsigned workers = 1;
+};
+
+/// A stream the service can end from outside (shutdown, scene deletion).
+class Stream {
+ public:
+  virtual ~Stream() = default;
+  /// Ends the stream with `status` once its in-flight frame is answered, when
+  /// `scene` is null or is the stream's scene.
+  virtual void stop_if(const SceneEntry* scene, const grpc::Status& status) = 0;
+};
+
+class Service final : public v1::Visibility::CallbackService {
+ public:
+  using Log = std::function<void(const std::string&)>;
+  Service(ServiceConfig config, WorkerPool& pool, SceneStore& store, const TokenTable& tokens,
+          Metrics& metrics, Log log);
+  ~Service() override;
+
+  /// Loads a scene at start (data directory or --scene file). Runs on the
+  /// caller's thread before the server accepts calls. `positions`, when
+  /// given, replace the centres of the dynamic objects they name.
+  Status load_scene(const std::string& id, const std::string& json, const std::string& source,
+                    const std::vector<Move>* positions, std::optional<double> t, bool persist);
+  bool has_scene(const std::string& id) const;
+
+  /// Ends every stream with UNAVAILABLE after its in-flight frame and refuses
+  /// new ones. Call before grpc::Server::Shutdown.
+  void begin_shutdown();
+  /// Writes the positions of every scene whose dynamic objects moved since
+  /// the last save. `pool_idle`: called when no job can run (final save), so
+  /// scenes are read directly instead of through their strands.
+  void save_positions(bool pool_idle);
+
+  // RPCs (see the .proto).
+  grpc::ServerUnaryReactor* CreateScene(grpc::CallbackServerContext* ctx,
+                                        const v1::CreateSceneRequest* req,
+                                        v1::SceneInfo* resp) override;
+  grpc::ServerUnaryReactor* DeleteScene(grpc::CallbackServerContext* ctx,
+                                        const v1::DeleteSceneRequest* req,
+                                        v1::DeleteSceneResponse* resp) override;
+  grpc::ServerUnaryReactor* ListScenes(grpc::CallbackServerContext* ctx,
+                                       const v1::ListScenesRequest* req,
+                                       v1::ListScenesResponse* resp) override;
+  grpc::ServerUnaryReactor* GetSceneStats(grpc::CallbackServerContext* ctx,
+                                          const v1::GetSceneStatsRequest* req,
+                                          v1::SceneInfo* resp) override;
+  grpc::ServerBidiReactor<v1::ViewRequest, v1::ViewResponse>* View(
+      grpc::CallbackServerContext* ctx) override;
+  grpc::ServerBidiReactor<v1::SimulateRequest, v1::SimulateResponse>* Simulate(
+      grpc::CallbackServerContext* ctx) override;
+  grpc::ServerUnaryReactor* GetPvs(grpc::CallbackServerContext* ctx,
+                                   const v1::GetPvsRequest* req,
+                                   v1::GetPvsResponse* resp) override;
+
+  // For the reactors.
+  std::shared_ptr<SceneEntry> find(const std::string& id) const;
+  const TokenTable& tokens() const { return tokens_; }
+  Metrics& metrics() { return metrics_; }
+  /// Registers a live stream; false when the server is shutting down.
+  bool add_stream(Stream* s);
+  void remove_stream(Stream* s);
+  /// Counts a call ended with a non-OK status.
+  void count_error(const char* method, const grpc::Status& status);
+
+ private:
+  void finish_unary(grpc::ServerUnaryReactor* r, const char* method, const grpc::Status& s);
+  void fill_info(const SceneEntry& e, v1::SceneInfo* out) const;
+  /// Checks the budget, builds, persists (when `persist`) and registers a
+  /// scene. INVALID_ARGUMENT, ALREADY_EXISTS, RESOURCE_EXHAUSTED or INTERNAL.
+  grpc::Status build_scene(const std::string& id, SceneDesc desc, const std::string& json,
+                           bool from_json, bool persist);
+
+  ServiceConfig config_;
+  WorkerPool& pool_;
+  SceneStore& store_;
+  const TokenTable& tokens_;
+  Metrics& metrics_;
+  Log log_;
+
+  mutable std::mutex scenes_mu_;
+  std::map<std::string, std::shared_ptr<SceneEntry>> scenes_;  // Guarded by scenes_mu_.
+  std::map<std::string, std::uint64_t> reserved_;  // Guarded by scenes_mu_: ids being created.
+  std::uint64_t bytes_in_use_ = 0;                 // Guarded by scenes_mu_ (scenes and reserved).
+
+  std::mutex store_mu_;  // Serializes position saves with scene deletion.
+
+  std::mutex streams_mu_;
+  std::unordered_set<Stream*> streams_;  // Guarded by streams_mu_.
+  bool shutting_down_ = false;           // Guarded by streams_mu_.
+};
+
+}  // namespace voxvis::server
