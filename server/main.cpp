@@ -47,9 +47,9 @@ int run(int argc, char** argv) {
       ->required()
       ->type_name("DIR");
   app.add_option("--scene", config.scene_files,
-                 "Scene file (voxvis-scene/1) to serve, id = file name without extension; "
-                 "kept as it is when the data directory already has that id")
-      ->type_name("FILE");
+                 "Scene file (voxvis-scene/1) to serve, as ID=FILE or FILE (id: the file name "
+                 "without extension); kept as it is when the data directory already has that id")
+      ->type_name("[ID=]FILE");
   app.add_option("--tls-cert", config.tls_cert, "Server certificate chain (PEM); enables TLS")
       ->type_name("FILE");
   app.add_option("--tls-key", config.tls_key, "Server private key (PEM)")->type_name("FILE");

@@ -48,6 +48,9 @@ class Metrics {
   virtual void scenes(std::size_t n) = 0;
   /// Counts a call that ended with a non-OK status.
   virtual void error(const char* method, grpc::StatusCode code) = 0;
+  /// The TCP port the metrics are served on (the one the system chose when
+  /// ADDR asked for port 0); 0 when nothing is served.
+  virtual int port() const { return 0; }
 };
 
 /// Metrics served over HTTP at `address` ("127.0.0.1:9464"). Throws

@@ -89,8 +89,18 @@ class ServerImpl final : public Server {
                                " (move the file away to start without it)");
       log_("loaded scene '" + st.id + "' from the data directory");
     }
-    for (const std::string& path : config_.scene_files) {
-      const std::string id = id_from_path(path);
+    for (const std::string& arg : config_.scene_files) {
+      // "ID=FILE" names the scene; a plain FILE is named after its stem.
+      std::string id, path = arg;
+      if (const auto eq = arg.find('='); eq != std::string::npos && arg.find('/') > eq) {
+        id = arg.substr(0, eq);
+        path = arg.substr(eq + 1);
+        if (!valid_scene_id(id))
+          return fail(error, "--scene " + arg + ": '" + id +
+                                 "' is not a scene id (1-64 of [A-Za-z0-9._-], not starting with '.')");
+      } else {
+        id = id_from_path(path);
+      }
       if (service_->has_scene(id)) {
         log_("--scene " + path + ": scene '" + id +
              "' is already in the data directory; kept (delete it to load the file again)");
@@ -137,6 +147,9 @@ class ServerImpl final : public Server {
     if (!tokens_.enabled()) log_("no --tokens: every client may create, delete, move and view");
     log_("listening on port " + std::to_string(port_) + " (" + std::to_string(workers) +
          " workers, memory budget " + std::to_string(budget >> 20) + " MiB)");
+    if (!config_.metrics_address.empty())
+      log_("metrics at http://" + config_.metrics_address.substr(0, config_.metrics_address.rfind(':')) +
+           ":" + std::to_string(metrics_->port()) + "/metrics");
     if (!config_.port_file.empty()) {
       const std::string tmp = config_.port_file + ".tmp";
       std::ofstream(tmp) << port_ << "\n";
