@@ -1,5 +1,7 @@
 // cli.h — the `voxvis` subcommands. Each returns the process exit status and
-// reports its own errors on stderr as "voxvis: error: <file>:<line>: <field>: <message>".
+// reports its own errors on stderr as "voxvis: error: <file>:<line>: <field>: <message>";
+// the networked ones (load, scenes, delete, view, simulate, loadgen) report a
+// server's answer as "voxvis: error: server: <CODE>: <message>".
 #pragma once
 
 #include <cstdint>
@@ -40,6 +42,63 @@ struct GenerateArgs {
 };
 
 int run_generate(const GenerateArgs& args);
+
+/// Options of every command that talks to voxvis-server.
+struct NetArgs {
+  std::string server = "127.0.0.1:50051";  ///< HOST:PORT.
+  std::string token_file;       ///< Bearer token file; empty: $VOXVIS_TOKEN_FILE, else none.
+  std::string tls_ca;           ///< PEM roots; non-empty enables TLS.
+  std::string tls_server_name;  ///< Name checked against the server's certificate.
+};
+
+struct LoadArgs {
+  NetArgs net;
+  std::string scene;  ///< voxvis-scene/1 file.
+  std::string id;     ///< Scene id; empty: the file's stem, sanitized.
+};
+
+int run_load(const LoadArgs& args);
+
+/// Lists the server's scenes, one line each.
+int run_scenes(const NetArgs& net);
+
+int run_delete(const NetArgs& net, const std::string& id);
+
+struct ViewArgs {
+  NetArgs net;
+  std::string scene;   ///< Scene id on the server.
+  std::string frames;  ///< Frames file, JSON Lines.
+  std::string out;     ///< Output file; empty: stdout.
+  bool delta = false;  ///< Ask for PVS_DELTA answers (reassembled: same output).
+  bool quiet = false;
+};
+
+int run_view(const ViewArgs& args);
+
+struct SimulateArgs {
+  NetArgs net;
+  std::string scene;
+  std::string frames;
+  double rate = 0.0;  ///< Batches per second; 0: as fast as acknowledgements come.
+  bool quiet = false;
+};
+
+int run_simulate(const SimulateArgs& args);
+
+struct LoadgenArgs {
+  NetArgs net;
+  std::string scene;
+  int viewers = 1;          ///< Concurrent View streams.
+  double rate = 30.0;       ///< Frames per second per viewer, Hz.
+  double duration = 10.0;   ///< Seconds of sending.
+  std::string frames;       ///< Cameras to loop over; empty: an orbit in the scene's bounds.
+  bool delta = false;
+  std::string json;         ///< Report as JSON to this file; empty: none.
+  int connections = 0;      ///< TCP connections; 0: one per 100 viewers.
+  bool quiet = false;
+};
+
+int run_loadgen(const LoadgenArgs& args);
 
 /// Parses "NX,NY,NZ" (integers in [1, max_per_axis]); on error sets `message`.
 bool parse_grid_arg(const std::string& text, int max_per_axis, int out[3], std::string* message);

@@ -1,5 +1,6 @@
 // main.cpp — the `voxvis` command line: argument parsing only; the work is in
-// replay.cpp and generate_cmd.cpp.
+// replay.cpp, generate_cmd.cpp and, for the commands that talk to
+// voxvis-server, load_cmd.cpp, view_cmd.cpp, simulate_cmd.cpp and loadgen_cmd.cpp.
 #include <cmath>
 #include <cstdio>
 #include <exception>
@@ -14,6 +15,22 @@
 #endif
 
 namespace {
+
+/// The options of every command that talks to voxvis-server.
+void add_net_options(CLI::App* cmd, voxvis::cli::NetArgs* net) {
+  cmd->add_option("--server", net->server, "Server address")
+      ->capture_default_str()
+      ->type_name("HOST:PORT");
+  cmd->add_option("--token-file", net->token_file,
+                  "File holding the bearer token (first non-comment line); default "
+                  "$VOXVIS_TOKEN_FILE, else no token. Never pass tokens on the command line.")
+      ->type_name("FILE");
+  cmd->add_option("--tls-ca", net->tls_ca, "PEM root certificates; enables TLS")
+      ->type_name("FILE");
+  cmd->add_option("--tls-server-name", net->tls_server_name,
+                  "Name to check the server's certificate against (default: the host of --server)")
+      ->type_name("NAME");
+}
 
 int run(int argc, char** argv) {
   using voxvis::cli::kExitError;
@@ -30,9 +47,13 @@ int run(int argc, char** argv) {
       "Examples:\n"
       "  voxvis generate --preset paper --scene-out scene.json --frames-out frames.jsonl\n"
       "  voxvis replay --scene scene.json --frames frames.jsonl --out pvs.jsonl\n"
+      "  voxvis load --server 127.0.0.1:50051 --scene scene.json --id paper\n"
+      "  voxvis view --scene paper --frames frames.jsonl --out pvs.jsonl\n"
+      "  voxvis loadgen --scene paper --viewers 500 --rate 60 --duration 30\n"
       "\n"
       "Exit status: 0 success, 2 invalid input or arguments (the message names\n"
-      "file:line: field), 1 internal error.");
+      "file:line: field) or an error from the server (its code and message),\n"
+      "1 internal error.");
   app.failure_message([](const CLI::App* /*app*/, const CLI::Error& e) {
     return std::string("voxvis: error: ") + e.what() + "\nRun with --help for more information.\n";
   });
@@ -88,6 +109,109 @@ int run(int argc, char** argv) {
       ->capture_default_str();
   gen_cmd->footer("The same arguments always produce byte-identical files.");
 
+  // voxvis load
+  voxvis::cli::LoadArgs load;
+  CLI::App* load_cmd = app.add_subcommand(
+      "load", "Create a scene on the server from a scene file (checked here first).");
+  add_net_options(load_cmd, &load.net);
+  load_cmd->add_option("--scene", load.scene, "Scene file (JSON, format voxvis-scene/1)")
+      ->required()
+      ->type_name("FILE");
+  load_cmd->add_option("--id", load.id,
+                       "Scene id: 1-64 characters from [A-Za-z0-9._-] (default: the file's stem)")
+      ->type_name("ID");
+  load_cmd->footer("Prints the scene's id, grid resolution and object counts. Needs an admin token.");
+
+  // voxvis scenes
+  voxvis::cli::NetArgs scenes_net;
+  CLI::App* scenes_cmd = app.add_subcommand("scenes", "List the server's scenes.");
+  add_net_options(scenes_cmd, &scenes_net);
+  scenes_cmd->footer("One line per scene: id, grid, objects, open viewers, frames served.");
+
+  // voxvis delete
+  voxvis::cli::NetArgs delete_net;
+  std::string delete_id;
+  CLI::App* delete_cmd = app.add_subcommand("delete", "Delete a scene on the server.");
+  add_net_options(delete_cmd, &delete_net);
+  delete_cmd->add_option("--id", delete_id, "Scene id")->required()->type_name("ID");
+  delete_cmd->footer("Its open streams end with NOT_FOUND. Needs an admin token.");
+
+  // voxvis view
+  voxvis::cli::ViewArgs view;
+  CLI::App* view_cmd = app.add_subcommand(
+      "view", "Replay a frames file against a scene on the server, as one viewer.");
+  add_net_options(view_cmd, &view.net);
+  view_cmd->add_option("--scene", view.scene, "Scene id on the server")->required()->type_name("ID");
+  view_cmd->add_option("--frames", view.frames,
+                       "Frames file (JSON Lines: one camera and optional moves per line)")
+      ->required()
+      ->type_name("FILE");
+  view_cmd->add_option("--out", view.out,
+                       "Output file (JSON Lines), written whole or not at all; default stdout")
+      ->type_name("FILE");
+  view_cmd->add_flag("--delta", view.delta,
+                     "Ask for PVS deltas and reassemble them (same output)");
+  view_cmd->add_flag("-q,--quiet", view.quiet, "No progress line and no summary on stderr");
+  view_cmd->footer(
+      "Lock-step: a line's moves are sent (Simulate) and acknowledged, then its camera\n"
+      "(View, frame number = 0-based frame index, time = the line's t). Output: the\n"
+      "lines `voxvis replay` writes, {\"frame\", \"pvs\", \"wake\", \"stats\"}, computed by\n"
+      "the server. Moves need a simulation token.");
+
+  // voxvis simulate
+  voxvis::cli::SimulateArgs sim;
+  CLI::App* sim_cmd = app.add_subcommand(
+      "simulate", "Send a frames file's moves to the server and print wake-list changes.");
+  add_net_options(sim_cmd, &sim.net);
+  sim_cmd->add_option("--scene", sim.scene, "Scene id on the server")->required()->type_name("ID");
+  sim_cmd->add_option("--frames", sim.frames, "Frames file; each line's moves are one batch")
+      ->required()
+      ->type_name("FILE");
+  sim_cmd->add_option("--rate", sim.rate,
+                      "Batches per second, paced by the wall clock (default: as fast as "
+                      "acknowledged)")
+      ->type_name("HZ");
+  sim_cmd->add_flag("-q,--quiet", sim.quiet, "No summary on stderr");
+  sim_cmd->footer(
+      "Batch seq = 0-based line index, t = the line's t. Output: one line per wake-list\n"
+      "change, {\"seq\": <latest ack before it, null before any>, \"version\", \"size\",\n"
+      "\"wake\": [the whole list, ascending]}. Needs a simulation token.");
+
+  // voxvis loadgen
+  voxvis::cli::LoadgenArgs gen_load;
+  CLI::App* loadgen_cmd = app.add_subcommand(
+      "loadgen", "Load a server with many concurrent viewers and report latencies.");
+  add_net_options(loadgen_cmd, &gen_load.net);
+  loadgen_cmd->add_option("--scene", gen_load.scene, "Scene id on the server")
+      ->required()
+      ->type_name("ID");
+  loadgen_cmd->add_option("--viewers", gen_load.viewers, "Concurrent View streams")
+      ->required()
+      ->type_name("N");
+  loadgen_cmd->add_option("--rate", gen_load.rate, "Frames per second per viewer")
+      ->required()
+      ->type_name("HZ");
+  loadgen_cmd->add_option("--duration", gen_load.duration, "Seconds of sending")
+      ->required()
+      ->type_name("SECONDS");
+  loadgen_cmd->add_option("--frames", gen_load.frames,
+                          "Cameras to loop over, each viewer from its own offset (default: an "
+                          "orbit inside the scene's bounds)")
+      ->type_name("FILE");
+  loadgen_cmd->add_flag("--delta", gen_load.delta, "Ask for PVS deltas");
+  loadgen_cmd->add_option("--json", gen_load.json, "Also write the report as JSON")
+      ->type_name("FILE");
+  loadgen_cmd->add_option("--connections", gen_load.connections,
+                          "TCP connections the streams are spread over (default: one per 100 "
+                          "viewers)")
+      ->type_name("N");
+  loadgen_cmd->add_flag("-q,--quiet", gen_load.quiet, "No progress line on stderr");
+  loadgen_cmd->footer(
+      "Latency: from sending a frame to receiving the answer carrying its number;\n"
+      "frames per second: answers over the time from the start to the last answer.\n"
+      "A tick that finds the viewer's previous write still outstanding is skipped\n"
+      "(\"send skipped\"). Report on stdout; exit 2 if a stream ended with an error.");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -106,6 +230,12 @@ int run(int argc, char** argv) {
     return voxvis::cli::run_replay(replay);
   }
   if (gen_cmd->parsed()) return voxvis::cli::run_generate(gen);
+  if (load_cmd->parsed()) return voxvis::cli::run_load(load);
+  if (scenes_cmd->parsed()) return voxvis::cli::run_scenes(scenes_net);
+  if (delete_cmd->parsed()) return voxvis::cli::run_delete(delete_net, delete_id);
+  if (view_cmd->parsed()) return voxvis::cli::run_view(view);
+  if (sim_cmd->parsed()) return voxvis::cli::run_simulate(sim);
+  if (loadgen_cmd->parsed()) return voxvis::cli::run_loadgen(gen_load);
   return kExitError;  // Unreachable: a subcommand is required.
 }
 

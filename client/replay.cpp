@@ -15,6 +15,7 @@
 #include <unistd.h>
 
 #include "cli.h"
+#include "common.h"
 #include "output_file.h"
 #include "voxvis/format.h"
 #include "voxvis/scene.h"
@@ -60,66 +61,6 @@ bool parse_grid_arg(const std::string& text, int max_per_axis, int out[3], std::
   if (pos != text.size()) return bad("malformed value");
   return true;
 }
-
-namespace {
-
-bool read_file(const std::string& path, std::string* text, FormatError* error) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    *error = FormatError{path, 0, "", std::string("cannot open: ") + std::strerror(errno)};
-    return false;
-  }
-  std::ostringstream buf;
-  buf << in.rdbuf();
-  if (in.bad()) {
-    *error = FormatError{path, 0, "", std::string("cannot read: ") + std::strerror(errno)};
-    return false;
-  }
-  *text = std::move(buf).str();
-  return true;
-}
-
-bool blank(const std::string& line) {
-  return line.find_first_not_of(" \t\r") == std::string::npos;
-}
-
-/// Nearest-rank percentile of sorted values, p in (0, 100].
-double percentile(const std::vector<double>& sorted, double p) {
-  if (sorted.empty()) return 0.0;
-  const double rank = std::ceil(p / 100.0 * static_cast<double>(sorted.size()));
-  const auto i = static_cast<std::size_t>(std::max(1.0, rank)) - 1;
-  return sorted[std::min(i, sorted.size() - 1)];
-}
-
-class Progress {
- public:
-  explicit Progress(bool enabled) : enabled_(enabled) {}
-  void update(std::size_t frames) {
-    if (!enabled_) return;
-    const auto now = Clock::now();
-    if (now - last_ < std::chrono::milliseconds(500)) return;
-    last_ = now;
-    const double secs = std::chrono::duration<double>(now - start_).count();
-    std::fprintf(stderr, "\rvoxvis: frame %zu, %.0f fps\x1b[K", frames,
-                 secs > 0.0 ? static_cast<double>(frames) / secs : 0.0);
-    std::fflush(stderr);
-    shown_ = true;
-  }
-  void finish() {
-    if (shown_) std::fputs("\r\x1b[K", stderr);
-    shown_ = false;
-  }
-  double elapsed() const { return std::chrono::duration<double>(Clock::now() - start_).count(); }
-
- private:
-  using Clock = std::chrono::steady_clock;
-  bool enabled_;
-  bool shown_ = false;
-  Clock::time_point start_ = Clock::now();
-  Clock::time_point last_ = Clock::now();
-};
-
-}  // namespace
 
 int run_replay(const ReplayArgs& args) {
   // The scene: parse, apply --grid, build.

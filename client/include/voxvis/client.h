@@ -1,0 +1,254 @@
+// voxvis/client.h — a C++ client of voxvis-server (proto/voxvis/v1/voxvis.proto).
+//
+// Design choices:
+//  * Synchronous and lock-step: ViewerSession and SimulationSession send one
+//    message and wait for its answer, which is what a renderer or a simulation
+//    that works frame by frame needs, and what lets `voxvis view` reproduce
+//    `voxvis replay` line for line. Many concurrent streams (load generation)
+//    use gRPC's callback API directly instead (client/loadgen_cmd.cpp).
+//  * Sessions reassemble the server's incremental encodings (PVS deltas, wake
+//    list changes) and check them: an inconsistent update is a protocol error,
+//    never silently patched.
+//  * Errors leave as grpc::Status; describe() turns one into a message. Calls
+//    never wait for the channel to become ready (wait-for-ready off), so an
+//    unreachable server fails at once with UNAVAILABLE.
+//  * Tokens are read from files, never taken from the command line, where
+//    every user of the machine could read them in the process list.
+//
+// Thread-safety: connect() and the free functions are thread-safe. A Client
+// may be shared between threads (its unary calls are independent); a session
+// must be used by one thread at a time.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <grpcpp/grpcpp.h>
+
+#include "voxvis/scene.h"
+#include "voxvis/types.h"
+#include "voxvis/v1/voxvis.grpc.pb.h"
+#include "voxvis/v1/voxvis.pb.h"
+
+namespace voxvis::client {
+
+// ---------------------------------------------------------------------------
+// Connection
+
+struct ConnectOptions {
+  std::string address;          ///< "host:port", e.g. "127.0.0.1:50051".
+  std::string token;            ///< Bearer token; empty: none.
+  std::string tls_ca_file;      ///< PEM root certificates; non-empty enables TLS.
+  std::string tls_server_name;  ///< Name checked against the server's certificate
+                                ///< instead of the host of `address`; TLS only.
+  int max_message_bytes = 64 << 20;  ///< Largest message sent or received, bytes.
+  /// Distinct values force distinct connections (gRPC otherwise shares one
+  /// TCP connection between channels with equal arguments).
+  int channel_index = 0;
+};
+
+/// Creates a channel (does not connect yet: the first call does). On error
+/// (empty address, unreadable CA file, TLS options without a CA file) returns
+/// nullptr and sets `error`.
+std::shared_ptr<grpc::Channel> connect(const ConnectOptions& options, std::string* error);
+
+/// Reads a token file: the first line that is neither empty nor a comment
+/// ('#' first after leading blanks), trimmed. The token must be printable
+/// ASCII without white space. On error returns false and sets `error`
+/// ("<path>: ...").
+bool load_token(const std::string& path, std::string* token, std::string* error);
+
+/// Adds "authorization: Bearer <token>" to `context`; nothing when `token` is empty.
+void add_token(grpc::ClientContext* context, const std::string& token);
+
+/// "INVALID_ARGUMENT", "UNAVAILABLE", ...
+const char* status_code_name(grpc::StatusCode code);
+
+/// "server: CODE: message" ("cannot reach server at ADDR: message" for
+/// UNAVAILABLE when `address` is not empty).
+std::string describe(const grpc::Status& status, const std::string& address = {});
+
+// ---------------------------------------------------------------------------
+// Conversions between engine values and wire messages. Ids, coordinates and
+// times are copied unchanged (world units, seconds, degrees).
+
+void to_proto(const Vec3& v, v1::Vec3* out);
+Vec3 from_proto(const v1::Vec3& v);
+void to_proto(const SceneDesc& scene, v1::SceneDescription* out);
+void to_proto(const Camera& camera, v1::Camera* out);
+Camera from_proto(const v1::Camera& camera);
+FrameStats from_proto(const v1::FrameStats& stats);
+
+// ---------------------------------------------------------------------------
+// Unary calls
+
+/// A channel plus the token and deadlines every call uses.
+class Client {
+ public:
+  /// `address` only names the server in messages.
+  Client(std::shared_ptr<grpc::Channel> channel, std::string token, std::string address);
+
+  /// Deadlines of the unary calls (streams have none).
+  std::chrono::milliseconds create_timeout{30'000};
+  std::chrono::milliseconds call_timeout{10'000};
+
+  /// CreateScene from a voxvis-scene/1 document (the server names its lines).
+  grpc::Status create_scene(const std::string& scene_id, const std::string& scene_json,
+                            v1::SceneInfo* info) const;
+  /// CreateScene from a description.
+  grpc::Status create_scene(const std::string& scene_id, const SceneDesc& scene,
+                            v1::SceneInfo* info) const;
+  grpc::Status delete_scene(const std::string& scene_id) const;
+  /// Ascending scene ids.
+  grpc::Status list_scenes(std::vector<v1::SceneInfo>* scenes) const;
+  grpc::Status get_scene_stats(const std::string& scene_id, v1::SceneInfo* info) const;
+  /// One PVS for a fresh viewer at time `t` (seconds). `result->wake` stays
+  /// empty (GetPvs has none); `*t_used` (may be null) receives the scene time
+  /// the frame was computed at.
+  grpc::Status get_pvs(const std::string& scene_id, double t, const Camera& camera,
+                       FrameResult* result, double* t_used = nullptr) const;
+
+  /// Sets the token, wait-for-ready off, and a deadline `timeout` from now
+  /// (none when zero) on a context for a call of this client.
+  void prepare(grpc::ClientContext* context, std::chrono::milliseconds timeout) const;
+
+  v1::Visibility::Stub& stub() const { return *stub_; }
+  const std::shared_ptr<grpc::Channel>& channel() const { return channel_; }
+  const std::string& address() const { return address_; }
+  const std::string& token() const { return token_; }
+
+ private:
+  std::shared_ptr<grpc::Channel> channel_;
+  std::unique_ptr<v1::Visibility::Stub> stub_;
+  std::string token_;
+  std::string address_;
+};
+
+// ---------------------------------------------------------------------------
+// Viewer stream
+
+/// One answer of ViewerSession::frame.
+struct ViewFrame {
+  std::uint64_t frame = 0;      ///< The request's frame number, echoed.
+  double t = 0.0;               ///< Scene time the frame was computed at, seconds.
+  FrameResult result;           ///< Full PVS (deltas reassembled), wake, stats.
+  std::uint32_t frames_skipped = 0;  ///< Requests replaced by newer ones (0 in lock-step).
+  double server_us = 0.0;       ///< Server time for the request, microseconds.
+};
+
+/// The View stream, lock-step: frame() writes one request and waits for its
+/// answer.
+class ViewerSession {
+ public:
+  explicit ViewerSession(const Client& client) : client_(client) {}
+  ~ViewerSession();  ///< Cancels the stream if finish() was not called.
+  ViewerSession(const ViewerSession&) = delete;
+  ViewerSession& operator=(const ViewerSession&) = delete;
+
+  /// Starts the stream. The scene and encoding go with the first frame, so an
+  /// unknown scene shows as a failed frame().
+  void open(const std::string& scene_id, v1::PvsEncoding encoding = v1::PVS_FULL);
+
+  /// Sends frame `frame_no` (must increase along the stream) at time `t`
+  /// (seconds, not decreasing) and waits for its answer. On failure returns
+  /// false; finish() then gives the reason.
+  bool frame(std::uint64_t frame_no, double t, const Camera& camera, ViewFrame* out);
+
+  /// Ends the stream (WritesDone, then the final status). A protocol error
+  /// seen by frame() (a delta that does not apply, an answer to another
+  /// frame) comes back as INTERNAL with a message starting "protocol: ";
+  /// protocol_error() then tells it from the server's own INTERNAL.
+  grpc::Status finish();
+  bool protocol_error() const { return !protocol_error_.empty(); }
+
+ private:
+  bool fail(std::string message);
+
+  const Client& client_;
+  std::unique_ptr<grpc::ClientContext> context_;
+  std::unique_ptr<grpc::ClientReaderWriter<v1::ViewRequest, v1::ViewResponse>> stream_;
+  std::string scene_id_;
+  v1::PvsEncoding encoding_ = v1::PVS_FULL;
+  bool first_ = true;
+  bool finished_ = false;
+  std::vector<ObjectId> pvs_;  ///< Previous answer's PVS, for deltas.
+  std::vector<ObjectId> scratch_;
+  std::string protocol_error_;
+};
+
+/// Applies a change to an ascending id set: `ids` minus `removed` plus
+/// `added`, both ascending. Returns false (with `ids` unchanged) when a list
+/// is not strictly ascending, a removed id is absent or an added id already
+/// present; `error` then names the list by `removed_name` / `added_name`.
+/// `scratch` is reused working memory.
+bool apply_delta(std::vector<ObjectId>* ids, const std::vector<ObjectId>& removed,
+                 const std::vector<ObjectId>& added, std::vector<ObjectId>* scratch,
+                 std::string* error, const char* removed_name = "removed",
+                 const char* added_name = "added");
+
+// ---------------------------------------------------------------------------
+// Simulation stream
+
+struct MoveAckResult {
+  std::uint64_t seq = 0;
+  std::uint32_t applied = 0;
+  std::vector<ObjectId> too_fast;  ///< Moved faster than their max_speed (applied anyway).
+  double t = 0.0;                  ///< Scene time the batch was applied at, seconds.
+};
+
+/// A wake-list change, with the whole list after it.
+struct WakeUpdate {
+  std::uint64_t version = 0;
+  bool full = false;              ///< The server sent the whole list.
+  std::vector<ObjectId> ids;      ///< Whole list after the change, ascending.
+};
+
+/// The Simulate stream, lock-step: send() writes one batch and reads until
+/// its acknowledgement, collecting the wake-list changes that come first.
+class SimulationSession {
+ public:
+  explicit SimulationSession(const Client& client) : client_(client) {}
+  ~SimulationSession();  ///< Cancels the stream if finish() was not called.
+  SimulationSession(const SimulationSession&) = delete;
+  SimulationSession& operator=(const SimulationSession&) = delete;
+
+  /// Starts the stream and subscribes to the scene's wake list. On failure
+  /// returns false; finish() gives the reason.
+  bool open(const std::string& scene_id);
+
+  /// Sends a batch at time `t` (seconds, not decreasing) and waits for the
+  /// acknowledgement of `seq`. Wake-list changes read meanwhile are appended
+  /// to `wakes` (may be null), in stream order. On failure returns false.
+  bool send(std::uint64_t seq, double t, const std::vector<Move>& moves, MoveAckResult* ack,
+            std::vector<WakeUpdate>* wakes);
+
+  /// The reassembled wake list (ascending) and its version; empty before the
+  /// first wake message.
+  const std::vector<ObjectId>& wake() const { return wake_; }
+  std::uint64_t wake_version() const { return wake_version_; }
+
+  /// Ends the stream: WritesDone, then reads what is left (wake-list changes
+  /// go to `wakes`, may be null) and returns the final status. Protocol
+  /// errors as in ViewerSession::finish().
+  grpc::Status finish(std::vector<WakeUpdate>* wakes = nullptr);
+  bool protocol_error() const { return !protocol_error_.empty(); }
+
+ private:
+  bool fail(std::string message);
+  bool apply_wake(const v1::WakeList& wake, std::vector<WakeUpdate>* wakes);
+
+  const Client& client_;
+  std::unique_ptr<grpc::ClientContext> context_;
+  std::unique_ptr<grpc::ClientReaderWriter<v1::SimulateRequest, v1::SimulateResponse>> stream_;
+  bool finished_ = false;
+  bool have_wake_ = false;
+  std::vector<ObjectId> wake_;
+  std::vector<ObjectId> scratch_;
+  std::uint64_t wake_version_ = 0;
+  std::string protocol_error_;
+};
+
+}  // namespace voxvis::client

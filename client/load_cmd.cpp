@@ -1,0 +1,96 @@
+// load_cmd.cpp — scene administration on voxvis-server: `voxvis load`,
+// `voxvis scenes` and `voxvis delete`.
+#include <cstdio>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "cli.h"
+#include "common.h"
+#include "voxvis/client.h"
+#include "voxvis/format.h"
+
+namespace voxvis::cli {
+namespace {
+
+/// The file's stem as a scene id: characters outside [A-Za-z0-9._-] become
+/// '_', a leading '.' too, at most 64 characters; "scene" if nothing is left.
+std::string id_from_path(const std::string& path) {
+  std::string id = std::filesystem::path(path).stem().string();
+  for (char& c : id) {
+    const bool ok = (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') ||
+                    c == '.' || c == '_' || c == '-';
+    if (!ok) c = '_';
+  }
+  if (id.size() > 64) id.resize(64);
+  if (!id.empty() && id[0] == '.') id[0] = '_';
+  return id.empty() ? "scene" : id;
+}
+
+std::string grid_text(const v1::SceneInfo& info) {
+  return std::to_string(info.grid().nx()) + "x" + std::to_string(info.grid().ny()) + "x" +
+         std::to_string(info.grid().nz());
+}
+
+}  // namespace
+
+int run_load(const LoadArgs& args) {
+  std::string id = args.id;
+  std::string message;
+  if (id.empty()) {
+    id = id_from_path(args.scene);
+  } else if (!valid_scene_id(id, &message)) {
+    return report(FormatError{"", 0, "--id", message});
+  }
+
+  // Checked here first, so that errors carry this machine's file name and line.
+  std::string text;
+  FormatError error;
+  if (!read_file(args.scene, &text, &error)) return report(error);
+  SceneDesc desc;
+  if (!parse_scene(text, args.scene, &desc, &error)) return report(error);
+
+  int code = kExitOk;
+  const std::unique_ptr<client::Client> client = open_client(args.net, &code);
+  if (client == nullptr) return code;
+  v1::SceneInfo info;
+  // The text itself, not a description: the server keeps it as written and
+  // names its lines in errors (for example a grid over its memory budget).
+  if (const grpc::Status st = client->create_scene(id, text, &info); !st.ok()) {
+    return report_status(st, args.net.server, about_input(st.error_code()) ? args.scene : "");
+  }
+  std::printf("%s: grid %s, %u objects (%u dynamic)\n", info.scene_id().c_str(),
+              grid_text(info).c_str(), info.objects(), info.dynamic_objects());
+  return kExitOk;
+}
+
+int run_scenes(const NetArgs& net) {
+  int code = kExitOk;
+  const std::unique_ptr<client::Client> client = open_client(net, &code);
+  if (client == nullptr) return code;
+  std::vector<v1::SceneInfo> scenes;
+  if (const grpc::Status st = client->list_scenes(&scenes); !st.ok()) {
+    return report_status(st, net.server, "");
+  }
+  for (const v1::SceneInfo& s : scenes) {
+    std::printf("%s: grid %s, %u objects (%u dynamic), %u viewers, %s frames served\n",
+                s.scene_id().c_str(), grid_text(s).c_str(), s.objects(), s.dynamic_objects(),
+                s.viewers(), with_commas(s.frames_served()).c_str());
+  }
+  return kExitOk;
+}
+
+int run_delete(const NetArgs& net, const std::string& id) {
+  std::string message;
+  if (!valid_scene_id(id, &message)) return report(FormatError{"", 0, "--id", message});
+  int code = kExitOk;
+  const std::unique_ptr<client::Client> client = open_client(net, &code);
+  if (client == nullptr) return code;
+  if (const grpc::Status st = client->delete_scene(id); !st.ok()) {
+    return report_status(st, net.server, "");
+  }
+  std::printf("deleted %s\n", id.c_str());
+  return kExitOk;
+}
+
+}  // namespace voxvis::cli

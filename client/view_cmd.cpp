@@ -1,0 +1,142 @@
+// view_cmd.cpp — `voxvis view`: `voxvis replay` against a server. Each frames
+// line's moves go through a Simulate stream (acknowledged before the frame),
+// then its camera through a View stream, lock-step; each answer becomes the
+// line `voxvis replay` would write, so the two outputs compare line by line
+// (apart from the stats' times).
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <unistd.h>
+
+#include "cli.h"
+#include "common.h"
+#include "output_file.h"
+#include "voxvis/client.h"
+#include "voxvis/format.h"
+
+namespace voxvis::cli {
+namespace {
+
+/// Where a stream error is reported: the frames line for errors about what
+/// it sent (the server names the field), none for the others (an unknown
+/// scene, an unreachable server, a refused token).
+std::string where_for(const grpc::Status& st, bool protocol_error, const std::string& file,
+                      int line) {
+  return protocol_error || about_input(st.error_code()) ? file + ":" + std::to_string(line)
+                                                        : std::string();
+}
+
+}  // namespace
+
+int run_view(const ViewArgs& args) {
+  std::string message;
+  if (!valid_scene_id(args.scene, &message)) return report(FormatError{"", 0, "--scene", message});
+  std::ifstream frames(args.frames, std::ios::binary);
+  if (!frames) {
+    return report(FormatError{args.frames, 0, "", std::string("cannot open: ") + std::strerror(errno)});
+  }
+  OutputFile out;
+  if (!out.open(args.out, &message)) return report(FormatError{args.out, 0, "", message});
+
+  int code = kExitOk;
+  const std::unique_ptr<client::Client> client = open_client(args.net, &code);
+  if (client == nullptr) return code;
+  client::ViewerSession viewer(*client);
+  viewer.open(args.scene, args.delta ? v1::PVS_DELTA : v1::PVS_FULL);
+  std::unique_ptr<client::SimulationSession> sim;  // Opened at the first moves.
+
+  FrameInput frame;
+  FormatError error;
+  client::ViewFrame answer;
+  client::MoveAckResult ack;
+  std::vector<double> round_trips_ms;
+  double pvs_total = 0.0;
+  std::size_t too_fast = 0;
+  std::size_t index = 0;
+  int line_no = 0;
+  std::string line;
+  std::string out_line;
+  Progress progress(!args.quiet && ::isatty(STDERR_FILENO) != 0);
+  const auto fail = [&](int status) {
+    progress.finish();
+    return status;
+  };
+
+  while (std::getline(frames, line)) {
+    ++line_no;
+    if (blank(line)) continue;
+    if (!parse_frame_line(line, args.frames, line_no, &frame, &error)) return fail(report(error));
+    if (!frame.moves.empty()) {
+      if (sim == nullptr) {
+        sim = std::make_unique<client::SimulationSession>(*client);
+        if (!sim->open(args.scene)) {
+          const grpc::Status st = sim->finish();
+          return fail(report_status(st, args.net.server, "", sim->protocol_error()));
+        }
+      }
+      // The frame's index as the batch's sequence number: errors and acks
+      // then name the frame.
+      if (!sim->send(index, frame.t, frame.moves, &ack, nullptr)) {
+        const grpc::Status st = sim->finish();
+        return fail(report_status(st, args.net.server,
+                                  where_for(st, sim->protocol_error(), args.frames, line_no),
+                                  sim->protocol_error()));
+      }
+      too_fast += ack.too_fast.size();
+    }
+    const auto sent = std::chrono::steady_clock::now();
+    if (!viewer.frame(index, frame.t, frame.camera, &answer)) {
+      const grpc::Status st = viewer.finish();
+      return fail(report_status(st, args.net.server,
+                                where_for(st, viewer.protocol_error(), args.frames, line_no),
+                                viewer.protocol_error()));
+    }
+    round_trips_ms.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - sent).count());
+    out_line = result_to_json(index, answer.result);
+    out_line += '\n';
+    if (!out.write(out_line)) {
+      return fail(report(FormatError{out.path(), 0, "", std::string("cannot write: ") + std::strerror(errno)}));
+    }
+    pvs_total += static_cast<double>(answer.result.pvs.size());
+    ++index;
+    progress.update(index);
+  }
+  if (frames.bad()) {
+    return fail(report(FormatError{args.frames, line_no, "", std::string("cannot read: ") + std::strerror(errno)}));
+  }
+  progress.finish();
+  if (const grpc::Status st = viewer.finish(); !st.ok()) {
+    return report_status(st, args.net.server, "", viewer.protocol_error());
+  }
+  if (sim != nullptr) {
+    if (const grpc::Status st = sim->finish(); !st.ok()) {
+      return report_status(st, args.net.server, "", sim->protocol_error());
+    }
+  }
+  if (!out.commit(&message)) return report(FormatError{out.path(), 0, "", message});
+
+  if (!args.quiet) {
+    const double wall = progress.elapsed();
+    std::vector<double> sorted = round_trips_ms;
+    std::sort(sorted.begin(), sorted.end());
+    double sum = 0.0;
+    for (const double t : sorted) sum += t;
+    const double n = static_cast<double>(std::max<std::size_t>(sorted.size(), 1));
+    std::fprintf(stderr,
+                 "voxvis: %zu frames in %.2f s; round trip ms mean %.2f, median %.2f, p99 %.2f; "
+                 "mean PVS %.1f objects; too-fast moves %zu\n",
+                 index, wall, sum / n, percentile(sorted, 50.0), percentile(sorted, 99.0),
+                 pvs_total / n, too_fast);
+  }
+  return kExitOk;
+}
+
+}  // namespace voxvis::cli
