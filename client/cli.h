@@ -70,6 +70,7 @@ struct ViewArgs {
   std::string frames;  ///< Frames file, JSON Lines.
   std::string out;     ///< Output file; empty: stdout.
   bool delta = false;  ///< Ask for PVS_DELTA answers (reassembled: same output).
+  int every = 0;  ///< Print a one-line summary of every Nth frame on stderr; 0: none.
   bool quiet = false;
 };
 

@@ -152,6 +152,11 @@ int run(int argc, char** argv) {
   view_cmd->add_flag("--delta", view.delta,
                      "Ask for PVS deltas and reassemble them (same output)");
   view_cmd->add_flag("-q,--quiet", view.quiet, "No progress line and no summary on stderr");
+  view_cmd->add_option("--every", view.every,
+                       "Print a one-line summary of every Nth frame on stderr (PVS size and "
+                       "change, wake list, engine time, round trip)")
+      ->check(CLI::Range(0, 1000000))
+      ->type_name("N");
   view_cmd->footer(
       "Lock-step: a line's moves are sent (Simulate) and acknowledged, then its camera\n"
       "(View, frame number = 0-based frame index, time = the line's t). Output: the\n"

@@ -4,6 +4,7 @@
 // line `voxvis replay` would write, so the two outputs compare line by line
 // (apart from the stats' times).
 #include <algorithm>
+#include <iterator>
 #include <cerrno>
 #include <chrono>
 #include <cstdio>
@@ -60,6 +61,8 @@ int run_view(const ViewArgs& args) {
   double pvs_total = 0.0;
   std::size_t too_fast = 0;
   std::size_t index = 0;
+  std::vector<ObjectId> previous_pvs;  // For --every: the PVS last summarized.
+  std::size_t previous_index = 0;
   int line_no = 0;
   std::string line;
   std::string out_line;
@@ -106,6 +109,28 @@ int run_view(const ViewArgs& args) {
       return fail(report(FormatError{out.path(), 0, "", std::string("cannot write: ") + std::strerror(errno)}));
     }
     pvs_total += static_cast<double>(answer.result.pvs.size());
+    if (args.every > 0 && index % static_cast<std::size_t>(args.every) == 0) {
+      const std::vector<ObjectId>& pvs = answer.result.pvs;
+      std::vector<ObjectId> diff;
+      std::set_difference(pvs.begin(), pvs.end(), previous_pvs.begin(), previous_pvs.end(),
+                          std::back_inserter(diff));
+      const std::size_t added = diff.size();
+      diff.clear();
+      std::set_difference(previous_pvs.begin(), previous_pvs.end(), pvs.begin(), pvs.end(),
+                          std::back_inserter(diff));
+      progress.finish();
+      char change[64] = "first frame";
+      if (index > 0)
+        std::snprintf(change, sizeof change, "+%zu -%zu since frame %zu", added, diff.size(),
+                      previous_index);
+      std::fprintf(stderr,
+                   "frame %4zu  t %7.3f s  PVS %5zu (%s)  wake %4zu  engine %6.2f ms  "
+                   "round trip %6.2f ms\n",
+                   index, answer.t, pvs.size(), change, answer.result.wake.size(),
+                   answer.result.stats.time_us / 1000.0, round_trips_ms.back());
+      previous_pvs = pvs;
+      previous_index = index;
+    }
     ++index;
     progress.update(index);
   }
