@@ -1,0 +1,162 @@
+// Wire messages to engine values: the same checks as the batch formats, with
+// errors naming the message field.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "convert.h"
+
+namespace voxvis::server {
+namespace {
+
+v1::Vec3* set(v1::Vec3* v, double x, double y, double z) {
+  v->set_x(x);
+  v->set_y(y);
+  v->set_z(z);
+  return v;
+}
+
+v1::SceneDescription good_scene() {
+  v1::SceneDescription d;
+  set(d.mutable_bounds_min(), 0, 0, 0);
+  set(d.mutable_bounds_max(), 10, 10, 10);
+  v1::Object* s = d.add_objects();
+  s->set_id(7);
+  set(s->mutable_sphere()->mutable_center(), 1, 2, 3);
+  s->mutable_sphere()->set_radius(0.5);
+  s->set_dynamic(true);
+  s->set_max_speed(2.0);
+  v1::Object* b = d.add_objects();
+  b->set_id(8);
+  set(b->mutable_box()->mutable_min(), 1, 1, 1);
+  set(b->mutable_box()->mutable_max(), 3, 2, 1);
+  return d;
+}
+
+TEST(Convert, SceneDescriptionBecomesEngineInput) {
+  SceneDesc desc;
+  ASSERT_TRUE(desc_from_proto(good_scene(), &desc));
+  ASSERT_EQ(desc.objects.size(), 2u);
+  EXPECT_EQ(desc.objects[0].shape, Shape::Sphere);
+  EXPECT_TRUE(desc.objects[0].dynamic);
+  EXPECT_EQ(desc.objects[0].max_speed, 2.0);
+  EXPECT_EQ(desc.objects[1].shape, Shape::Box);
+  EXPECT_EQ(desc.objects[1].center, Vec3(2.0, 1.5, 1.0));
+  EXPECT_EQ(desc.objects[1].half_extent, Vec3(1.0, 0.5, 0.0));
+  EXPECT_FALSE(desc.grid.has_value());
+}
+
+TEST(Convert, SceneErrorsNameTheField) {
+  struct Case {
+    const char* field;
+    void (*mutate)(v1::SceneDescription*);
+  };
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  static double s_nan;
+  s_nan = nan;
+  const Case cases[] = {
+      {"description.bounds_min", [](v1::SceneDescription* d) { d->clear_bounds_min(); }},
+      {"description.bounds_max", [](v1::SceneDescription* d) { set(d->mutable_bounds_max(), 10, 0, 10); }},
+      {"description.grid.ny", [](v1::SceneDescription* d) {
+         d->mutable_grid()->set_nx(4);
+         d->mutable_grid()->set_ny(0);
+         d->mutable_grid()->set_nz(4);
+       }},
+      {"description.objects[0].radius", [](v1::SceneDescription* d) { d->mutable_objects(0)->mutable_sphere()->set_radius(-1); }},
+      {"description.objects[0].center", [](v1::SceneDescription* d) { d->mutable_objects(0)->mutable_sphere()->mutable_center()->set_y(s_nan); }},
+      {"description.objects[0].center", [](v1::SceneDescription* d) { d->mutable_objects(0)->mutable_sphere()->mutable_center()->set_y(2e12); }},
+      {"description.objects[0].max_speed", [](v1::SceneDescription* d) { d->mutable_objects(0)->set_max_speed(-1); }},
+      {"description.objects[1].max_speed", [](v1::SceneDescription* d) { d->mutable_objects(1)->set_max_speed(1); }},
+      {"description.objects[1].max", [](v1::SceneDescription* d) { set(d->mutable_objects(1)->mutable_box()->mutable_max(), 0, 2, 1); }},
+      {"description.objects[1].min", [](v1::SceneDescription* d) { d->mutable_objects(1)->mutable_box()->clear_min(); }},
+      {"description.objects[1]", [](v1::SceneDescription* d) { d->mutable_objects(1)->clear_box(); }},
+  };
+  for (const Case& c : cases) {
+    v1::SceneDescription d = good_scene();
+    c.mutate(&d);
+    SceneDesc desc;
+    const Status s = desc_from_proto(d, &desc);
+    EXPECT_FALSE(s.ok) << c.field;
+    EXPECT_EQ(s.field, c.field) << s.str();
+  }
+}
+
+TEST(Convert, EngineErrorsGetThePathOrTheLine) {
+  // Duplicate ids are the engine's check: put on the message path...
+  const Status engine = Status::Error("objects[1].id", "duplicate id 7");
+  EXPECT_EQ(scene_create_error(engine, false, "").str(), "description.objects[1].id: duplicate id 7");
+  // ...or on the line of the JSON document.
+  const std::string json =
+      "{\n\"format\": \"voxvis-scene/1\",\n\"bounds\": {\"min\": [0,0,0], \"max\": [1,1,1]},\n"
+      "\"objects\": [\n{\"id\": 7, \"shape\": \"sphere\", \"center\": [0,0,0], \"radius\": 1},\n"
+      "{\"id\": 7, \"shape\": \"sphere\", \"center\": [0,0,0], \"radius\": 1}\n]}\n";
+  EXPECT_NE(scene_create_error(engine, true, json).str().find("scene_json:6"), std::string::npos)
+      << scene_create_error(engine, true, json).str();
+}
+
+TEST(Convert, JsonErrorsCarryTheLine) {
+  SceneDesc desc;
+  const Status s = desc_from_json("{\n\"format\": \"voxvis-scene/1\",\n\"bounds\": 3\n}", &desc);
+  ASSERT_FALSE(s.ok);
+  EXPECT_NE(s.str().find("scene_json:3"), std::string::npos) << s.str();
+}
+
+TEST(Convert, CameraChecksNameTheField) {
+  v1::Camera c;
+  set(c.mutable_eye(), 0, 0, 0);
+  set(c.mutable_dir(), 0, 0, 1);
+  set(c.mutable_up(), 0, 1, 0);
+  c.set_fov_y_deg(60);
+  c.set_aspect(1.5);
+  c.set_near(0.1);
+  c.set_far(100);
+  Camera cam;
+  EXPECT_TRUE(camera_from_proto(c, true, &cam));
+  EXPECT_EQ(cam.aspect, 1.5);
+  EXPECT_EQ(camera_from_proto(c, false, &cam).field, "camera");
+  v1::Camera bad = c;
+  bad.set_fov_y_deg(190);
+  EXPECT_EQ(camera_from_proto(bad, true, &cam).field, "camera.fov_y_deg");
+  bad = c;
+  bad.clear_up();
+  EXPECT_EQ(camera_from_proto(bad, true, &cam).field, "camera.up");
+  bad = c;
+  set(bad.mutable_up(), 0, 0, 2);
+  EXPECT_EQ(camera_from_proto(bad, true, &cam).field, "camera.up");
+  bad = c;
+  bad.set_far(0.05);
+  EXPECT_EQ(camera_from_proto(bad, true, &cam).field, "camera.far");
+}
+
+TEST(Convert, MovesChecked) {
+  v1::MoveBatch b;
+  v1::Move* m = b.add_moves();
+  m->set_id(3);
+  set(m->mutable_center(), 1, 2, 3);
+  std::vector<Move> moves;
+  ASSERT_TRUE(moves_from_proto(b, &moves));
+  ASSERT_EQ(moves.size(), 1u);
+  EXPECT_EQ(moves[0].center, Vec3(1, 2, 3));
+  v1::Move* twice = b.add_moves();
+  *twice = *m;
+  EXPECT_EQ(moves_from_proto(b, &moves).field, "batch.moves[1].id");
+  b.mutable_moves(1)->set_id(4);
+  b.mutable_moves(1)->clear_center();
+  EXPECT_EQ(moves_from_proto(b, &moves).field, "batch.moves[1].center");
+}
+
+TEST(Convert, MemoryEstimateGrowsWithVoxelsAndWorkers) {
+  SceneDesc desc;
+  const std::uint64_t small = estimate_scene_bytes(desc, glm::ivec3(10), 2);
+  const std::uint64_t big = estimate_scene_bytes(desc, glm::ivec3(100), 2);
+  const std::uint64_t more_workers = estimate_scene_bytes(desc, glm::ivec3(100), 8);
+  EXPECT_GT(big, small);
+  EXPECT_GT(more_workers, big);
+  // At least the bytes the grid's layers certainly take: a flags byte and a
+  // CSR offset per voxel, and each worker's 4 bytes of scratch per voxel.
+  EXPECT_GE(big, 1000000ull * (1 + 4 + 4 * 2));
+}
+
+}  // namespace
+}  // namespace voxvis::server
