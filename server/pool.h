@@ -1,14 +1,12 @@
-// pool.h — the worker pool that runs all PVS and move work, and strands that
-// serialize the work of one scene.
+// pool.h — the worker pool that runs frames and moves, and strands that
+// serialize a sequence of jobs on it.
 //
-// A Scene is not internally synchronized (grid/include/voxvis/scene.h), so
-// every operation on it runs as a job of the scene's Strand: jobs of one
-// strand run one at a time, in the order posted, on any worker; jobs of
-// different strands run in parallel. A strand that has work occupies one
-// worker at a time and hands the worker back after a few jobs, so one busy
-// scene cannot starve the others, and no worker ever blocks on a scene lock.
-// Each worker owns one Scratch (per-frame working memory), reused across
-// scenes.
+// Workers never block on each other's work except on a scene's lock. Jobs of
+// one Strand run one at a time, in the order posted, on any worker; the
+// server uses one per scene for its move batches. A strand with work
+// occupies one worker at a time and hands it back after a few jobs, so one
+// busy scene cannot starve the others. Each worker owns one Scratch
+// (per-frame working memory), reused across scenes.
 #pragma once
 
 #include <condition_variable>

@@ -178,7 +178,7 @@ class ServerImpl final : public Server {
     }
     saver_cv_.notify_all();
     if (saver_.joinable()) saver_.join();
-    if (service_) service_->save_positions(true);
+    if (service_) service_->save_positions();
     if (server_) {
       server_->Wait();
       log_("stopped");
@@ -196,7 +196,7 @@ class ServerImpl final : public Server {
     const auto period = std::chrono::duration<double>(config_.save_period_s);
     while (!saver_cv_.wait_for(lock, period, [this] { return saver_stop_; })) {
       lock.unlock();
-      service_->save_positions(false);
+      service_->save_positions();
       lock.lock();
     }
   }

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <future>
 #include <optional>
 #include <utility>
 
@@ -46,6 +45,9 @@ class SimReactor;
 void deliver_wake(SimReactor* r, std::shared_ptr<const WakeSnapshot> snap);
 
 void SceneEntry::refresh_wake() {
+  std::lock_guard<std::mutex> lock(wake_mu);
+  // The epoch is read before the set: a change in between is seen again next
+  // time, never lost.
   const std::uint64_t epoch = scene->wake_epoch();
   if (epoch == wake_epoch_seen && wake) return;
   wake_epoch_seen = epoch;
@@ -58,9 +60,22 @@ void SceneEntry::refresh_wake() {
   snap->ids = std::move(ids);
   wake = snap;
   for (const auto& sink : sinks) {
-    std::lock_guard<std::mutex> lock(sink->mu);
+    std::lock_guard<std::mutex> sink_lock(sink->mu);
     if (sink->reactor) deliver_wake(sink->reactor, wake);
   }
+}
+
+void SceneEntry::subscribe(const std::shared_ptr<WakeSink>& sink) {
+  refresh_wake();
+  std::lock_guard<std::mutex> lock(wake_mu);
+  sinks.push_back(sink);
+  std::lock_guard<std::mutex> sink_lock(sink->mu);
+  if (sink->reactor) deliver_wake(sink->reactor, wake);  // The whole list first.
+}
+
+void SceneEntry::unsubscribe(const std::shared_ptr<WakeSink>& sink) {
+  std::lock_guard<std::mutex> lock(wake_mu);
+  sinks.erase(std::remove(sinks.begin(), sinks.end(), sink), sinks.end());
 }
 
 // ---------------------------------------------------------------------------
@@ -208,7 +223,9 @@ class ViewReactor final : public grpc::ServerBidiReactor<v1::ViewRequest, v1::Vi
       pending_.reset();
       const std::uint32_t skipped = skipped_;
       skipped_ = 0;
-      entry_->strand->post([this, entry = entry_, p, skipped](Scratch& scratch) {
+      // Frames of one scene run in parallel (the Scene synchronizes itself);
+      // this stream's frames one at a time.
+      svc_->pool().submit([this, entry = entry_, p, skipped](Scratch& scratch) {
         compute(*entry, p, skipped, scratch);
       });
     }
@@ -221,7 +238,7 @@ class ViewReactor final : public grpc::ServerBidiReactor<v1::ViewRequest, v1::Vi
     }
   }
 
-  // Strand job.
+  // Pool job.
   void compute(SceneEntry& e, const Pending& p, std::uint32_t skipped, Scratch& scratch) {
     std::optional<Ready> ready;
     grpc::Status error;
@@ -299,7 +316,7 @@ class ViewReactor final : public grpc::ServerBidiReactor<v1::ViewRequest, v1::Vi
       if (entry_->metrics) entry_->metrics->viewers(-1);
       if (viewer_added_) {
         // The viewer's claims on its last PVS go with it.
-        entry_->strand->post([entry = entry_, v = viewer_](Scratch&) {
+        svc_->pool().submit([entry = entry_, v = viewer_](Scratch&) {
           if (!entry->deleted.load()) entry->scene->remove_viewer(v);
         });
       }
@@ -324,8 +341,8 @@ class ViewReactor final : public grpc::ServerBidiReactor<v1::ViewRequest, v1::Vi
   bool computing_ = false, writing_ = false, eof_ = false;
   bool stopping_ = false, finished_ = false, done_ = false;
   grpc::Status stop_status_;
-  int jobs_ = 0;                         // Guarded by mu_: strand jobs referencing this.
-  // Strand-only (handed over through mu_ when the last job ends).
+  int jobs_ = 0;                         // Guarded by mu_: pool jobs referencing this.
+  // Touched by this stream's jobs only, one at a time (handed over through mu_).
   bool viewer_added_ = false;
   ViewerId viewer_ = 0;
 };
@@ -424,12 +441,7 @@ class SimReactor final
       entry_->simulators.fetch_add(1, std::memory_order_relaxed);
       ++jobs_;
       entry_->strand->post([this, entry = entry_, sink = sink_](Scratch&) {
-        if (!entry->deleted.load()) {
-          entry->sinks.push_back(sink);
-          entry->wake_epoch_seen = ~std::uint64_t{0};  // Make sure a snapshot exists.
-          entry->refresh_wake();
-          on_wake(entry->wake);  // The full list first.
-        }
+        if (!entry->deleted.load()) entry->subscribe(sink);
         job_done(std::nullopt, grpc::Status::OK);
       });
     } else if (!r.scene_id().empty() && r.scene_id() != entry_->id) {
@@ -549,10 +561,7 @@ class SimReactor final
   void release() {
     if (entry_) {
       entry_->simulators.fetch_sub(1, std::memory_order_relaxed);
-      entry_->strand->post([entry = entry_, sink = sink_](Scratch&) {
-        auto& v = entry->sinks;
-        v.erase(std::remove(v.begin(), v.end(), sink), v.end());
-      });
+      entry_->unsubscribe(sink_);
     }
     delete this;
   }
@@ -735,7 +744,7 @@ Status Service::load_scene(const std::string& id, const std::string& json,
   return Status::Ok();
 }
 
-void Service::save_positions(bool pool_idle) {
+void Service::save_positions() {
   std::vector<std::shared_ptr<SceneEntry>> entries;
   {
     std::lock_guard<std::mutex> lock(scenes_mu_);
@@ -744,23 +753,8 @@ void Service::save_positions(bool pool_idle) {
   }
   for (const auto& e : entries) {
     e->positions_dirty.store(false);
-    std::vector<Move> centers;
     double t = 0.0;
-    if (pool_idle) {
-      centers = e->scene->dynamic_centers();
-      t = e->scene->time();
-    } else {
-      // Read through the strand: the scene is not synchronized.
-      std::promise<void> done;
-      e->strand->post([&](Scratch&) {
-        if (!e->deleted.load()) {
-          centers = e->scene->dynamic_centers();
-          t = e->scene->time();
-        }
-        done.set_value();
-      });
-      done.get_future().wait();
-    }
+    const std::vector<Move> centers = e->scene->dynamic_centers(&t);
     std::lock_guard<std::mutex> lock(store_mu_);
     if (e->deleted.load()) continue;
     if (Status s = store_.save_positions(e->id, t, centers); !s) {
@@ -928,7 +922,7 @@ grpc::ServerUnaryReactor* Service::GetPvs(grpc::CallbackServerContext* ctx,
     return r;
   }
   const Clock::time_point received = Clock::now();
-  e->strand->post([this, r, e, camera, t = req->t(), resp, received](Scratch& scratch) {
+  pool_.submit([this, r, e, camera, t = req->t(), resp, received](Scratch& scratch) {
     if (e->deleted.load()) {
       finish_unary(r, "GetPvs", grpc::Status(grpc::StatusCode::NOT_FOUND, "scene '" + e->id + "' was deleted"));
       return;

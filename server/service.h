@@ -47,12 +47,14 @@ struct WakeSink {
   SimReactor* reactor = nullptr;  // Guarded by mu.
 };
 
-/// A scene being served. Fields marked "strand" are touched only by jobs of
-/// `strand` (or when the pool is idle at start and shutdown).
+/// A scene being served. The Scene synchronizes itself: frames of different
+/// viewers run in parallel, moves exclusively (voxvis/scene.h). Move batches
+/// go through `strand`, so that a scene's batches apply in arrival order and
+/// occupy one worker at a time.
 struct SceneEntry {
   std::string id;
   std::shared_ptr<Strand> strand;
-  std::unique_ptr<Scene> scene;  // strand
+  std::unique_ptr<Scene> scene;
   std::shared_ptr<SceneMetrics> metrics;
   std::uint64_t memory_bytes = 0;
   GridSpec grid;  // Immutable copies for statistics.
@@ -69,14 +71,17 @@ struct SceneEntry {
   std::atomic<std::uint32_t> wake_size{0};
   std::atomic<double> time{0.0};
 
-  // Wake list, strand.
-  std::uint64_t wake_epoch_seen = ~std::uint64_t{0};
-  std::shared_ptr<const WakeSnapshot> wake;
-  std::vector<std::shared_ptr<WakeSink>> sinks;
+  std::mutex wake_mu;
+  std::uint64_t wake_epoch_seen = ~std::uint64_t{0};       // Guarded by wake_mu.
+  std::shared_ptr<const WakeSnapshot> wake;                // Guarded by wake_mu.
+  std::vector<std::shared_ptr<WakeSink>> sinks;            // Guarded by wake_mu.
 
   /// Recomputes the wake list when the engine says it may have changed and
-  /// hands a new snapshot to every Simulate stream of the scene. Strand.
+  /// hands a new snapshot to every Simulate stream of the scene.
   void refresh_wake();
+  /// Registers a Simulate stream's sink and hands it the whole list.
+  void subscribe(const std::shared_ptr<WakeSink>& sink);
+  void unsubscribe(const std::shared_ptr<WakeSink>& sink);
 };
 
 /// Server-wide settings (voxvis-server's options; docs/server.md).
@@ -113,9 +118,8 @@ class Service final : public v1::Visibility::CallbackService {
   /// new ones. Call before grpc::Server::Shutdown.
   void begin_shutdown();
   /// Writes the positions of every scene whose dynamic objects moved since
-  /// the last save. `pool_idle`: called when no job can run (final save), so
-  /// scenes are read directly instead of through their strands.
-  void save_positions(bool pool_idle);
+  /// the last save.
+  void save_positions();
 
   // RPCs (see the .proto).
   grpc::ServerUnaryReactor* CreateScene(grpc::CallbackServerContext* ctx,
@@ -142,6 +146,7 @@ class Service final : public v1::Visibility::CallbackService {
   std::shared_ptr<SceneEntry> find(const std::string& id) const;
   const TokenTable& tokens() const { return tokens_; }
   Metrics& metrics() { return metrics_; }
+  WorkerPool& pool() { return pool_; }
   /// Registers a live stream; false when the server is shutting down.
   bool add_stream(Stream* s);
   void remove_stream(Stream* s);

@@ -119,6 +119,8 @@ Scratch::Scratch() : impl_(std::make_unique<Impl>()) {}
 Scratch::~Scratch() = default;
 
 void Scratch::Impl::begin(std::size_t voxels, std::size_t objects) {
+  pvs.clear();
+  deferred.clear();
   if (stamp.size() < voxels) stamp.resize(voxels, 0);
   if (obj_mark.size() < objects) obj_mark.resize(objects, 0);
   if (obj_seen.size() < objects) obj_seen.resize(objects, 0);
@@ -523,9 +525,13 @@ Status Scene::create(const SceneDesc& desc, const SceneOptions& options, std::un
 const GridSpec& Scene::grid() const { return impl_->spec; }
 std::size_t Scene::object_count() const { return impl_->objs.size(); }
 std::size_t Scene::dynamic_count() const { return impl_->dynamic_count; }
-double Scene::time() const { return impl_->time; }
+double Scene::time() const {
+  std::shared_lock<std::shared_mutex> lock(impl_->mu);
+  return impl_->time;
+}
 
 ViewerId Scene::add_viewer() {
+  std::unique_lock<std::shared_mutex> lock(impl_->mu);
   const ViewerId id = impl_->next_viewer++;
   impl_->viewers.emplace(id, detail::ViewerState{});
   return id;
@@ -533,6 +539,7 @@ ViewerId Scene::add_viewer() {
 
 void Scene::remove_viewer(ViewerId viewer) {
   Impl& s = *impl_;
+  std::unique_lock<std::shared_mutex> lock(s.mu);
   auto it = s.viewers.find(viewer);
   if (it == s.viewers.end()) return;
   for (std::uint32_t slot : it->second.last_pvs) {
@@ -548,6 +555,7 @@ void Scene::remove_viewer(ViewerId viewer) {
 
 Status Scene::apply_moves(double t, std::span<const Move> moves, MoveReport* report) {
   Impl& s = *impl_;
+  std::unique_lock<std::shared_mutex> lock(s.mu);
   if (!std::isfinite(t)) return Status::Error("t", "must be finite");
   if (s.time_set && t < s.time)
     return Status::Error("t", "time goes backwards: " + num(t) + " < " + num(s.time));
@@ -604,9 +612,14 @@ Status Scene::apply_moves(double t, std::span<const Move> moves, MoveReport* rep
   return Status::Ok();
 }
 
-std::uint64_t Scene::wake_epoch() const { return impl_->wake_epoch; }
+std::uint64_t Scene::wake_epoch() const {
+  std::shared_lock<std::shared_mutex> lock(impl_->mu);
+  return impl_->wake_epoch;
+}
 
-std::vector<Move> Scene::dynamic_centers() const {
+std::vector<Move> Scene::dynamic_centers(double* time) const {
+  std::shared_lock<std::shared_mutex> lock(impl_->mu);
+  if (time) *time = impl_->time;
   std::vector<Move> out;
   out.reserve(impl_->dynamic_count);
   for (const Obj& o : impl_->objs)
@@ -616,6 +629,7 @@ std::vector<Move> Scene::dynamic_centers() const {
 }
 
 std::vector<ObjectId> Scene::wake_set() const {
+  std::shared_lock<std::shared_mutex> lock(impl_->mu);
   std::vector<ObjectId> ids;
   for (const Obj& o : impl_->objs)
     if (o.dynamic && !o.under_tbv) ids.push_back(o.id);

@@ -19,6 +19,8 @@
 #include <cstdint>
 #include <limits>
 #include <queue>
+#include <mutex>
+#include <shared_mutex>
 #include <unordered_map>
 #include <vector>
 
@@ -111,12 +113,18 @@ struct Scratch::Impl {
   // Reused buffers.
   std::vector<std::uint32_t> pvs;
   std::vector<std::uint32_t> reveals;
+  /// TBVs the traversal reached, revealed after it (Scene::frame, phase 3).
+  std::vector<std::uint32_t> deferred;
 
   /// Starts a frame for a scene of `voxels` voxels and `objects` slots.
   void begin(std::size_t voxels, std::size_t objects);
 };
 
 struct Scene::Impl {
+  /// Frames hold it shared while they traverse and exclusive while they
+  /// change the scene; every other mutation holds it exclusive.
+  mutable std::shared_mutex mu;
+
   GridSpec spec;
   SceneOptions options;
   glm::ivec3 res{1};

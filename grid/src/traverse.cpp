@@ -98,11 +98,12 @@ bool outside_part_visible(const WorldFrustum& wf, const GridSpec& g, Vec3 lo, Ve
 
 class Traversal {
  public:
-  Traversal(Scene::Impl& s, Scratch::Impl& w, const WorldFrustum& wf, FrameStats& st,
-            std::vector<std::uint32_t>& wake)
-      : s_(s), w_(w), wf_(wf), st_(st), wake_(wake), tag_(static_cast<std::uint32_t>(w.stamp_tag << 2)) {}
+  Traversal(const Scene::Impl& s, Scratch::Impl& w, const WorldFrustum& wf, FrameStats& st)
+      : s_(s), w_(w), wf_(wf), st_(st), tag_(static_cast<std::uint32_t>(w.stamp_tag << 2)) {}
 
-  /// Runs the traversal; adds PVS slots to w.pvs and reveals TBVs it reaches.
+  /// Runs the traversal; adds PVS slots to w.pvs, and the slots of the TBVs
+  /// it reaches to w.deferred. It only reads the scene, so frames of
+  /// different viewers traverse in parallel (Scene::frame).
   void run();
 
  private:
@@ -150,15 +151,13 @@ class Traversal {
                     const std::int64_t v[3]) const;
   void visit_row(int face, int a, int b, int d, std::int64_t la, std::int64_t vd, Range row,
                  std::int64_t m);
-  void collect(std::int64_t idx, const std::int64_t v[3], std::int64_t m, std::uint8_t flags);
-  void reveal_in_frame(std::uint32_t slot, std::int64_t m);
-  std::int64_t chess_from_eye(const Obj& o) const;
+  void collect(std::int64_t idx, const std::int64_t v[3], std::uint8_t flags);
+  void reveal_in_frame(std::uint32_t slot);
 
-  Scene::Impl& s_;
+  const Scene::Impl& s_;
   Scratch::Impl& w_;
   const WorldFrustum& wf_;
   FrameStats& st_;
-  std::vector<std::uint32_t>& wake_;
   const std::uint32_t tag_;
 
   LocalFrustum lf_;
@@ -288,30 +287,19 @@ Range Traversal::row_in_pyramid(int a, std::int64_t la, int b, int d, std::int64
   return Range{static_cast<std::int64_t>(lo), static_cast<std::int64_t>(hi)};
 }
 
-std::int64_t Traversal::chess_from_eye(const Obj& o) const {
-  const double sl = s_.slop(max_abs(o.center) + o.radius + max_abs(o.half));
-  const detail::VoxBox vb = s_.touch_range(o.box_lo(), o.box_hi(), sl);
-  if (vb.empty()) return std::numeric_limits<std::int64_t>::max();
-  std::int64_t dist = 0;
-  for (int a = 0; a < 3; ++a) {
-    const std::int64_t lo = vb.lo[a] - E_[a], hi = vb.hi[a] - E_[a];
-    const std::int64_t da = lo > 0 ? lo : (hi < 0 ? -hi : 0);
-    dist = std::max(dist, da);
-  }
-  return dist;
+void Traversal::reveal_in_frame(std::uint32_t slot) {
+  // A TBV reached as not occluded may hold the object anywhere in view, but
+  // the object itself is where it was last reported: it goes into the PVS
+  // whenever its box meets the frustum, with no occlusion test, and the TBV
+  // is dropped after the traversal. Both only add to the PVS (the object's own
+  // voxels do not occlude in this frame), so deferring keeps the frame
+  // conservative while the traversal stays read-only.
+  if (w_.obj_seen[slot] == w_.frame) return;  // Already handled this frame.
+  w_.deferred.push_back(slot);
+  add(slot);
 }
 
-void Traversal::reveal_in_frame(std::uint32_t slot, std::int64_t m) {
-  s_.reveal(slot);
-  ++st_.tbvs_revealed;
-  wake_.push_back(slot);
-  // Voxels of shells already done will not be visited again: if the object
-  // reaches into them, it may be visible there, so it goes into the PVS.
-  if (chess_from_eye(s_.objs[slot]) <= m) add(slot);
-}
-
-void Traversal::collect(std::int64_t idx, const std::int64_t v[3], std::int64_t m,
-                        std::uint8_t flags) {
+void Traversal::collect(std::int64_t idx, const std::int64_t v[3], std::uint8_t flags) {
   const auto i = static_cast<std::size_t>(idx);
   if (flags & Scene::Impl::kStaticIds)
     for (std::uint32_t j = s_.static_offsets[i]; j < s_.static_offsets[i + 1]; ++j) add(s_.static_ids[j]);
@@ -324,7 +312,6 @@ void Traversal::collect(std::int64_t idx, const std::int64_t v[3], std::int64_t 
       s_.bricks_res.x * ((gy >> detail::kBrickShift) +
                          std::int64_t{s_.bricks_res.y} * (gz >> detail::kBrickShift)))];
   if (brick.live == 0) return;
-  std::size_t first_reveal = w_.reveals.size();
   for (const detail::BrickEntry& e : brick.entries) {
     if (!s_.current(e)) continue;
     const std::uint32_t slot = e.key >> 1;
@@ -333,15 +320,11 @@ void Traversal::collect(std::int64_t idx, const std::int64_t v[3], std::int64_t 
       const detail::VoxBox& vb = o.tbv_voxels;
       if (gx >= vb.lo.x && gx <= vb.hi.x && gy >= vb.lo.y && gy <= vb.hi.y && gz >= vb.lo.z &&
           gz <= vb.hi.z)
-        w_.reveals.push_back(slot);
+        reveal_in_frame(slot);
     } else if (w_.obj_seen[slot] != w_.frame && s_.touches(o, o.center, gx, gy, gz)) {
       add(slot);
     }
   }
-  // Revealing edits brick lists, so it waits until the scan is done.
-  for (std::size_t r = first_reveal; r < w_.reveals.size(); ++r)
-    if (s_.objs[w_.reveals[r]].under_tbv) reveal_in_frame(w_.reveals[r], m);
-  w_.reveals.resize(first_reveal);
 }
 
 void Traversal::fill_table(ExitTable& t, int face, std::int64_t la, std::int64_t j,
@@ -460,7 +443,7 @@ void Traversal::visit_row(int face, int a, int b, int d, std::int64_t la, std::i
     }
     if ((flags & Scene::Impl::kStaticIds) == 0 && !has_dyn_) continue;  // Nothing to collect.
     const Vec3 lo{static_cast<double>(v[0]), static_cast<double>(v[1]), static_cast<double>(v[2])};
-    if (lf_.depth_max(lo) >= lf_.near - depth_tol_) collect(idx, v, m, flags);
+    if (lf_.depth_max(lo) >= lf_.near - depth_tol_) collect(idx, v, flags);
   }
   if (live_lo > live_hi) return;
   IBox& fl = face_live_[face];
@@ -630,93 +613,117 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
   Impl& s = *impl_;
   if (Status st = validate_camera(camera); !st) return st;
   if (!std::isfinite(t)) return Status::Error("t", "must be finite");
-  if (s.time_set && t < s.time) {
-    char buf[128];
-    std::snprintf(buf, sizeof buf, "time goes backwards: %.17g < %.17g", t, s.time);
-    return Status::Error("t", buf);
-  }
-  auto vit = s.viewers.find(viewer);
-  if (vit == s.viewers.end()) return Status::Error("viewer", "unknown viewer " + std::to_string(viewer));
-
   const auto start = std::chrono::steady_clock::now();
-  s.time = t;
-  s.time_set = true;
-  if (!std::isfinite(s.first_frame_time)) s.first_frame_time = t;
   Scratch::Impl& w = scratch.impl();
   w.begin(static_cast<std::size_t>(s.spec.voxel_count()), s.objs.size());
-
-  FrameStats st = s.pending;
-  s.pending = FrameStats{};
+  const WorldFrustum wf = detail::make_world_frustum(camera);
+  FrameStats st;
   std::vector<std::uint32_t> wake;
-  wake.swap(s.pending_wake);
 
-  // Expired TBVs get a new validity period around the object's current
-  // position (paper 4.1, criterion 2); an object that stayed hidden through a
-  // whole period gets twice as long the next time.
-  while (!s.expiry.empty() && s.expiry.top().expiry <= t) {
-    const detail::ExpiryEntry e = s.expiry.top();
-    s.expiry.pop();
-    Obj& o = s.objs[e.slot];
-    if (!o.under_tbv || o.tbv_epoch != e.epoch) continue;
-    o.tbv_period = std::fmin(2.0 * o.tbv_period, s.max_period(o));
-    s.renew_tbv(e.slot, t);
-    ++st.tbvs_expired;
-    wake.push_back(e.slot);
+  // Phase 1, exclusive: the clock, expired TBVs, TBVs beyond the grid.
+  {
+    std::unique_lock<std::shared_mutex> lock(s.mu);
+    if (s.time_set && t < s.time) {
+      char buf[128];
+      std::snprintf(buf, sizeof buf, "time goes backwards: %.17g < %.17g", t, s.time);
+      return Status::Error("t", buf);
+    }
+    if (s.viewers.find(viewer) == s.viewers.end())
+      return Status::Error("viewer", "unknown viewer " + std::to_string(viewer));
+    s.time = t;
+    s.time_set = true;
+    if (!std::isfinite(s.first_frame_time)) s.first_frame_time = t;
+    st = s.pending;
+    s.pending = FrameStats{};
+    wake.swap(s.pending_wake);
+
+    // Expired TBVs get a new validity period around the object's current
+    // position (paper 4.1, criterion 2); an object that stayed hidden through
+    // a whole period gets twice as long the next time.
+    while (!s.expiry.empty() && s.expiry.top().expiry <= t) {
+      const detail::ExpiryEntry e = s.expiry.top();
+      s.expiry.pop();
+      Obj& o = s.objs[e.slot];
+      if (!o.under_tbv || o.tbv_epoch != e.epoch) continue;
+      o.tbv_period = std::fmin(2.0 * o.tbv_period, s.max_period(o));
+      s.renew_tbv(e.slot, t);
+      ++st.tbvs_expired;
+      wake.push_back(e.slot);
+    }
+
+    // TBVs reaching beyond the grid: their outer part has no voxels.
+    if (!s.outside_tbvs.empty()) {
+      w.reveals.assign(s.outside_tbvs.begin(), s.outside_tbvs.end());
+      for (std::uint32_t slot : w.reveals) {
+        ++st.outside_tested;
+        const Obj& o = s.objs[slot];
+        if (o.under_tbv && outside_part_visible(wf, s.spec, o.tbv_lo, o.tbv_hi)) {
+          s.reveal(slot);
+          ++st.tbvs_revealed;
+          wake.push_back(slot);
+        }
+      }
+      w.reveals.clear();
+    }
   }
 
-  const WorldFrustum wf = detail::make_world_frustum(camera);
+  // Phase 2, shared: the traversal and the tests beyond the grid only read
+  // the scene, so frames of different viewers run this part in parallel.
+  {
+    std::shared_lock<std::shared_mutex> lock(s.mu);
+    Traversal trav(s, w, wf, st);
+    trav.run();
 
-  // TBVs reaching beyond the grid: their outer part has no voxels.
-  if (!s.outside_tbvs.empty()) {
-    w.reveals.assign(s.outside_tbvs.begin(), s.outside_tbvs.end());
-    for (std::uint32_t slot : w.reveals) {
-      ++st.outside_tested;
-      const Obj& o = s.objs[slot];
-      if (o.under_tbv && outside_part_visible(wf, s.spec, o.tbv_lo, o.tbv_hi)) {
-        s.reveal(slot);
-        ++st.tbvs_revealed;
-        wake.push_back(slot);
+    // An eye so far away that shell indices lose precision: fall back to
+    // frustum culling of everything, which is always conservative.
+    if (eye_too_far(s.to_grid(camera.eye))) {
+      for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
+        const Obj& o = s.objs[slot];
+        if (o.under_tbv && wf.may_intersect_box(o.tbv_lo, o.tbv_hi)) w.deferred.push_back(slot);
+        if (wf.may_intersect_box(o.box_lo(), o.box_hi()) && w.obj_mark[slot] != w.frame) {
+          w.obj_mark[slot] = w.frame;
+          w.pvs.push_back(slot);
+        }
       }
     }
-    w.reveals.clear();
-  }
 
-  Traversal trav(s, w, wf, st, wake);
-  trav.run();
-
-  // An eye so far away that shell indices lose precision: fall back to
-  // frustum culling of everything, which is always conservative.
-  if (eye_too_far(s.to_grid(camera.eye))) {
-    for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
-      Obj& o = s.objs[slot];
-      if (o.under_tbv) {
-        if (!wf.may_intersect_box(o.tbv_lo, o.tbv_hi)) continue;
-        s.reveal(slot);
-        ++st.tbvs_revealed;
-        wake.push_back(slot);
-      }
-      if (wf.may_intersect_box(o.box_lo(), o.box_hi()) && w.obj_mark[slot] != w.frame) {
+    // Objects reaching beyond the grid: their outer part has no voxels.
+    for (std::uint32_t slot : s.outside_objs) {
+      if (w.obj_mark[slot] == w.frame) continue;
+      ++st.outside_tested;
+      const Obj& o = s.objs[slot];
+      if (outside_part_visible(wf, s.spec, o.box_lo(), o.box_hi())) {
         w.obj_mark[slot] = w.frame;
         w.pvs.push_back(slot);
       }
     }
   }
 
-  // Objects reaching beyond the grid: their outer part has no voxels.
-  for (std::uint32_t slot : s.outside_objs) {
-    if (w.obj_mark[slot] == w.frame) continue;
-    ++st.outside_tested;
-    const Obj& o = s.objs[slot];
-    if (outside_part_visible(wf, s.spec, o.box_lo(), o.box_hi())) {
-      w.obj_mark[slot] = w.frame;
-      w.pvs.push_back(slot);
-    }
+  // Phase 3, exclusive: reveals, claims, new TBVs.
+  std::unique_lock<std::shared_mutex> lock(s.mu);
+  auto vit = s.viewers.find(viewer);
+  if (vit == s.viewers.end()) return Status::Error("viewer", "unknown viewer " + std::to_string(viewer));
+  for (std::uint32_t slot : w.deferred) {
+    if (!s.objs[slot].under_tbv) continue;  // Revealed meanwhile (another frame, a move).
+    s.reveal(slot);
+    ++st.tbvs_revealed;
+    wake.push_back(slot);
   }
+  w.deferred.clear();
 
   // Claims: a dynamic object is claimed by every viewer whose last PVS holds
   // it; one no viewer claims is hidden from all of them and gets a TBV.
   std::vector<std::uint32_t> pvs = w.pvs;
   std::sort(pvs.begin(), pvs.end());
+  for (std::uint32_t slot : pvs) {
+    // Put under a TBV by another viewer's frame since this one's traversal:
+    // this viewer may see it, so it is revealed again.
+    if (s.objs[slot].under_tbv) {
+      s.reveal(slot);
+      ++st.tbvs_revealed;
+      wake.push_back(slot);
+    }
+  }
   detail::ViewerState& vs = vit->second;
   {
     auto a = vs.last_pvs.begin();

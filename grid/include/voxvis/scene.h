@@ -17,9 +17,14 @@
 //    (occluded/visited status, PVS marks) live in a Scratch that each worker
 //    thread owns and reuses across viewers and scenes.
 //
-// Thread-safety: a Scene is not internally synchronized. Frames and moves of
-// one scene must be serialized by the caller; different scenes are
-// independent. A Scratch must not be shared between threads.
+// Thread-safety: a Scene synchronizes itself with a reader-writer lock.
+// Frames of different viewers run in parallel: a frame changes the scene
+// briefly before and after its traversal (clock, expired TBVs; reveals,
+// claims, new TBVs) and traverses under a shared lock, deferring the TBVs it
+// reaches to the end (they go into its PVS meanwhile, which keeps it
+// conservative). Moves, add_viewer and remove_viewer are exclusive. Frames of
+// one viewer must not overlap (each needs the previous one's PVS). A Scratch
+// must not be shared between threads.
 #pragma once
 
 #include <cstdint>
@@ -162,8 +167,9 @@ class Scene {
   /// Changes whenever wake_set() may have changed (an object entered or left
   /// a TBV), so that callers recompute the set only then.
   std::uint64_t wake_epoch() const;
-  /// Current centres of the dynamic objects, ascending ids, world units.
-  std::vector<Move> dynamic_centers() const;
+  /// Current centres of the dynamic objects, ascending ids, world units, and
+  /// (when `time` is given) the scene time they are at, read together.
+  std::vector<Move> dynamic_centers(double* time = nullptr) const;
 
   struct Impl;
 
