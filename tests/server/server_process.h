@@ -1,0 +1,319 @@
+// server_process.h — the harness of the integration tests: the real
+// voxvis-server binary (VOXVIS_SERVER) run as a child process on a loopback
+// port, and thin wrappers around the generated gRPC stubs.
+//
+// Design choices:
+//  * The tests talk to the server through the generated stubs only
+//    (voxvis::v1::Visibility::Stub, sync API), never through the client
+//    library, so that they check the wire contract itself.
+//  * Every wait is bounded: process start, exit, stream reads (through call
+//    deadlines) and polls. A test that hangs is a failing test.
+//  * One fresh temporary directory per ServerProcess (mkdtemp under
+//    $TMPDIR or /tmp) holds the data directory, the port file and the
+//    server's stderr, which is printed when the test has failed. The
+//    directory is removed at the end unless VOXVIS_KEEP_TEST_DIRS is set.
+//  * The child is killed (SIGKILL) in the destructor whatever happened.
+#pragma once
+
+#include <sys/types.h>
+
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include <grpcpp/grpcpp.h>
+#include <gtest/gtest.h>
+
+#include "voxvis/scene.h"
+#include "voxvis/types.h"
+#include "voxvis/v1/voxvis.grpc.pb.h"
+
+namespace voxvis::servertest {
+
+using Seconds = std::chrono::duration<double>;
+
+// ---------------------------------------------------------------------------
+// Files and processes
+
+/// Creates a fresh directory under $TMPDIR (or /tmp); aborts the test on error.
+std::string make_temp_dir(const std::string& prefix);
+std::string slurp(const std::string& path);
+void spit(const std::string& path, const std::string& text);
+std::vector<std::string> lines_of(const std::string& text);
+
+/// Polls `done` every few milliseconds until it is true or `timeout` passes.
+template <class Pred>
+bool wait_until(Pred done, Seconds timeout) {
+  const auto end = std::chrono::steady_clock::now() + timeout;
+  while (!done()) {
+    if (std::chrono::steady_clock::now() >= end) return done();
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return true;
+}
+
+struct ProcessResult {
+  int status = -1;  ///< Exit status; -1 when killed by a signal or timed out.
+  int signal = 0;   ///< Signal that ended it, if any.
+  bool timed_out = false;
+  std::string out, err;
+};
+
+/// Runs argv[0] with stdin from /dev/null, stdout and stderr captured
+/// through files in `dir`; kills it (SIGKILL) after `timeout`.
+ProcessResult run_program(const std::vector<std::string>& argv, const std::string& dir,
+                          Seconds timeout = Seconds(120));
+
+/// A child process started with posix_spawn; killed in the destructor.
+class ChildProcess {
+ public:
+  ChildProcess() = default;
+  ~ChildProcess();
+  ChildProcess(const ChildProcess&) = delete;
+  ChildProcess& operator=(const ChildProcess&) = delete;
+
+  /// Starts argv[0]; stdout and stderr go to the files (appended). `env`
+  /// entries ("NAME=value") are added to (or replace those of) the test's
+  /// environment.
+  bool spawn(const std::vector<std::string>& argv, const std::string& stdout_path,
+             const std::string& stderr_path, const std::vector<std::string>& env = {});
+  pid_t pid() const { return pid_; }
+  bool running();
+  /// Waits for the exit (bounded). Returns the exit status, -1 when killed by
+  /// a signal (`signal()` says which) or still running after `timeout`.
+  int wait(Seconds timeout);
+  int signal() const { return signal_; }
+  void send_signal(int sig);
+  /// SIGKILL and reap.
+  void kill9();
+
+ private:
+  pid_t pid_ = -1;  // Negated once reaped.
+  int signal_ = 0;
+  int exited_status_ = -1;
+};
+
+// ---------------------------------------------------------------------------
+// API wrappers
+
+/// A stub and the token it sends ("authorization: Bearer <token>").
+class Api {
+ public:
+  Api(std::shared_ptr<grpc::Channel> channel, std::string token);
+
+  v1::Visibility::Stub& stub() const { return *stub_; }
+  const std::shared_ptr<grpc::Channel>& channel() const { return channel_; }
+  const std::string& token() const { return token_; }
+  /// Adds the token (when not empty) and a deadline `timeout` from now.
+  void prepare(grpc::ClientContext* context, Seconds timeout = Seconds(30)) const;
+
+  grpc::Status create_scene(const std::string& id, const v1::SceneDescription& desc,
+                            v1::SceneInfo* info = nullptr) const;
+  grpc::Status create_scene_json(const std::string& id, const std::string& json,
+                                 v1::SceneInfo* info = nullptr) const;
+  grpc::Status delete_scene(const std::string& id) const;
+  /// Scene ids in the order the server lists them.
+  grpc::Status list_scenes(std::vector<std::string>* ids) const;
+  grpc::Status stats(const std::string& id, v1::SceneInfo* info) const;
+  grpc::Status get_pvs(const std::string& id, double t, const Camera& camera,
+                       v1::GetPvsResponse* out) const;
+
+ private:
+  std::shared_ptr<grpc::Channel> channel_;
+  std::unique_ptr<v1::Visibility::Stub> stub_;
+  std::string token_;
+};
+
+/// One View stream, driven with the sync API.
+class ViewStream {
+ public:
+  /// Opens the stream (the scene and encoding go with the first request).
+  ViewStream(const Api& api, std::string scene_id, v1::PvsEncoding encoding = v1::PVS_FULL,
+             Seconds timeout = Seconds(120));
+  ~ViewStream();
+
+  /// Writes one request; false when the stream is broken.
+  bool send(std::uint64_t frame, double t, const Camera& camera);
+  bool send(const v1::ViewRequest& request);
+  bool read(v1::ViewResponse* response);
+  /// send + read.
+  bool frame(std::uint64_t frame, double t, const Camera& camera, v1::ViewResponse* response);
+  /// Half-closes (once).
+  bool writes_done();
+  /// Half-closes (once), reads what is left (counted in `drained()`) and
+  /// returns the call's status.
+  grpc::Status finish();
+  std::size_t drained() const { return drained_; }
+  grpc::ClientContext& context() { return context_; }
+  grpc::ClientReaderWriter<v1::ViewRequest, v1::ViewResponse>& stream() { return *stream_; }
+
+ private:
+  grpc::ClientContext context_;
+  std::unique_ptr<grpc::ClientReaderWriter<v1::ViewRequest, v1::ViewResponse>> stream_;
+  std::string scene_id_;
+  v1::PvsEncoding encoding_;
+  bool first_ = true;
+  bool writes_done_ = false;
+  bool finished_ = false;
+  grpc::Status status_;
+  std::size_t drained_ = 0;
+};
+
+/// One Simulate stream. A background thread reads every answer: wake lists
+/// are reassembled (and checked: the first one full, versions increasing,
+/// deltas consistent), acknowledgements are queued for wait_ack.
+class SimStream {
+ public:
+  /// Opens the stream and subscribes (first message: scene id, no batch).
+  SimStream(const Api& api, std::string scene_id, Seconds timeout = Seconds(120));
+  ~SimStream();
+
+  bool send(std::uint64_t seq, double t, const std::vector<Move>& moves);
+  /// The next acknowledgement, waiting at most `timeout`; false when the
+  /// stream ended or the time ran out.
+  bool wait_ack(v1::MoveAck* ack, Seconds timeout = Seconds(30));
+  /// send + wait_ack.
+  bool move(std::uint64_t seq, double t, const std::vector<Move>& moves, v1::MoveAck* ack);
+
+  /// Every wake list reassembled so far, one entry per WakeList message.
+  std::vector<std::vector<ObjectId>> wake_history() const;
+  /// Waits until more than `count` wake lists have arrived (or the stream ended).
+  bool wait_wake_count(std::size_t count, Seconds timeout);
+  /// Inconsistencies found in the wake-list messages.
+  std::vector<std::string> protocol_errors() const;
+  bool ended() const;
+
+  /// Half-closes, waits for the reader and returns the call's status.
+  grpc::Status finish();
+  grpc::ClientContext& context() { return context_; }
+
+ private:
+  void read_loop();
+
+  grpc::ClientContext context_;
+  std::unique_ptr<grpc::ClientReaderWriter<v1::SimulateRequest, v1::SimulateResponse>> stream_;
+  std::string scene_id_;
+  bool writes_done_ = false;
+  bool finished_ = false;
+  grpc::Status status_;
+  std::thread reader_;
+
+  mutable std::mutex mu_;
+  std::condition_variable cv_;
+  std::deque<v1::MoveAck> acks_;                // Guarded by mu_.
+  std::vector<ObjectId> wake_;                  // Guarded by mu_.
+  std::vector<std::vector<ObjectId>> history_;  // Guarded by mu_.
+  std::uint64_t version_ = 0;                   // Guarded by mu_.
+  std::vector<std::string> errors_;             // Guarded by mu_.
+  bool ended_ = false;                          // Guarded by mu_.
+};
+
+// ---------------------------------------------------------------------------
+// The server process
+
+class ServerProcess {
+ public:
+  /// `extra_args` follow --listen, --port-file and --data-dir.
+  explicit ServerProcess(std::vector<std::string> extra_args = {});
+  ~ServerProcess();
+  ServerProcess(const ServerProcess&) = delete;
+  ServerProcess& operator=(const ServerProcess&) = delete;
+
+  /// Starts the server and waits (at most 20 s) for its port file.
+  ::testing::AssertionResult start();
+  /// Starts it again on the same data directory (after terminate or kill9).
+  ::testing::AssertionResult restart() { return start(); }
+
+  std::vector<std::string>& extra_args() { return extra_args_; }
+  /// "NAME=value" entries added to the server's environment.
+  std::vector<std::string>& extra_env() { return extra_env_; }
+  std::string address() const { return "127.0.0.1:" + std::to_string(port_); }
+  int port() const { return port_; }
+  pid_t pid() const { return child_ ? child_->pid() : -1; }
+  bool running() const { return child_ && child_->running(); }
+  /// The test's temporary directory and the server's data directory in it.
+  const std::string& dir() const { return dir_; }
+  std::string data_dir() const { return dir_ + "/data"; }
+  /// Path for a scratch file of the test.
+  std::string path(const std::string& name) const { return dir_ + "/" + name; }
+
+  /// A new channel on its own TCP connection. `int_args` are extra channel
+  /// arguments (for example {GRPC_ARG_HTTP2_BDP_PROBE, 0}).
+  std::shared_ptr<grpc::Channel> channel(
+      const std::vector<std::pair<std::string, int>>& int_args = {}) const;
+  /// A stub on a new channel, sending `token` when not empty.
+  Api api(const std::string& token = "") const;
+
+  /// SIGTERM, then waits (bounded); returns the exit status (-1 when killed
+  /// by a signal or not exited within `timeout`, in which case it is killed).
+  int terminate(Seconds timeout = Seconds(30));
+  /// Sends a signal without waiting.
+  void signal(int sig);
+  /// Waits for the exit; the exit status, or -1 (killed by a signal, or
+  /// still running after `timeout`: then it is killed and the test fails).
+  int wait_exit(Seconds timeout);
+  void kill9();
+  /// The server's resident set size (VmRSS), KiB; -1 when unreadable.
+  long rss_kib() const;
+  /// The server's stderr so far (all runs).
+  std::string log() const;
+
+ private:
+  std::vector<std::string> extra_args_;
+  std::vector<std::string> extra_env_;
+  std::string dir_;
+  std::unique_ptr<ChildProcess> child_;
+  int port_ = 0;
+};
+
+// ---------------------------------------------------------------------------
+// Calls by method name, with serialized messages (grpc::GenericStub): for
+// services whose generated code the tests do not have (health, reflection).
+
+/// A unary call; `timeout` is the call's deadline.
+grpc::Status generic_unary(const std::shared_ptr<grpc::Channel>& channel, const std::string& method,
+                           const std::string& request, std::string* response,
+                           Seconds timeout = Seconds(10));
+/// A bidi-streaming call that sends one message, half-closes, and collects
+/// every answer.
+grpc::Status generic_bidi(const std::shared_ptr<grpc::Channel>& channel, const std::string& method,
+                          const std::string& request, std::vector<std::string>* responses,
+                          Seconds timeout = Seconds(10));
+
+// ---------------------------------------------------------------------------
+// Scenes, cameras and conversions shared by the tests
+
+void to_proto(const Vec3& v, v1::Vec3* out);
+void to_proto(const Camera& c, v1::Camera* out);
+void to_proto(const SceneDesc& scene, v1::SceneDescription* out);
+std::vector<ObjectId> ids_of(const google::protobuf::RepeatedField<std::uint32_t>& ids);
+/// The stats counters, everything but time_us, as one line of name=value pairs.
+std::string counters(const FrameStats& s);
+std::string counters(const v1::FrameStats& s);
+
+/// A camera at `eye` looking along `dir`, 60 degrees, far 1000.
+Camera look(Vec3 eye, Vec3 dir);
+
+/// A small scene as text: bounds [0,20]^3, grid 20^3; a wall (id 1) filling
+/// z in [8.5, 11.5] (it covers the voxel layers 9 and 10 with a margin: a
+/// face exactly on a voxel boundary is not trusted to occlude); a dynamic
+/// sphere (id 2, max_speed 100) behind it at (10, 10, 15); a static sphere
+/// (id 3) in front at (10, 10, 5). A camera at (10, 10, 1) looking +z
+/// (wall_camera()) sees 1 and 3, not 2.
+std::string wall_scene_json();
+Camera wall_camera();
+
+/// `count` small spheres (ids 1..count) on a jittered lattice in
+/// [0,100]^3, a fifth of them dynamic (max_speed 5), grid `grid`^3, no
+/// occluders: from outside looking in, nearly all are visible.
+SceneDesc lattice_scene(int count, int grid, std::uint64_t seed);
+
+}  // namespace voxvis::servertest
