@@ -31,6 +31,13 @@ void difference(const std::vector<ObjectId>& a, const std::vector<ObjectId>& b,
   }
 }
 
+/// Frames of one scene finish in any order: the statistic keeps the latest.
+void store_max(std::atomic<double>& a, double v) {
+  double cur = a.load(std::memory_order_relaxed);
+  while (cur < v && !a.compare_exchange_weak(cur, v, std::memory_order_relaxed)) {
+  }
+}
+
 void add_ids(const std::vector<ObjectId>& ids, google::protobuf::RepeatedField<std::uint32_t>* out) {
   out->Reserve(static_cast<int>(ids.size()));
   for (ObjectId id : ids) out->AddAlreadyReserved(id);
@@ -252,17 +259,18 @@ class ViewReactor final : public grpc::ServerBidiReactor<v1::ViewRequest, v1::Vi
       }
       ready.emplace();
       ready->frame = p.frame;
-      ready->t = std::max(p.t, scene.time());
       ready->received = p.received;
       ready->skipped = skipped;
-      Status s = scene.frame(viewer_, p.camera, ready->t, scratch, &ready->result);
+      // The scene's clock is shared: a time behind it is taken as it.
+      Status s = scene.frame(viewer_, p.camera, p.t, scratch, &ready->result, Scene::Clock::Latest);
+      ready->t = ready->result.t;
       if (!s) {
         error = invalid(s);
         ready.reset();
       } else {
         e.frames_served.fetch_add(1, std::memory_order_relaxed);
         e.tbvs_active.store(ready->result.stats.tbvs_active, std::memory_order_relaxed);
-        e.time.store(ready->t, std::memory_order_relaxed);
+        store_max(e.time, ready->t);
         e.refresh_wake();
       }
     }
@@ -474,15 +482,15 @@ class SimReactor final
       return;
     }
     Scene& scene = *e.scene;
-    const double at = std::max(t, scene.time());
     MoveReport report;
-    Status s = scene.apply_moves(at, moves, &report);
+    Status s = scene.apply_moves(t, moves, &report, Scene::Clock::Latest);
+    const double at = report.t;
     if (!s) {
       job_done(std::nullopt, invalid(Status::Error("batch." + s.field, s.message)));
       return;
     }
     e.moves_applied.fetch_add(report.applied, std::memory_order_relaxed);
-    e.time.store(at, std::memory_order_relaxed);
+    store_max(e.time, at);
     if (report.applied) e.positions_dirty.store(true, std::memory_order_relaxed);
     if (e.metrics) e.metrics->moves(report.applied);
     e.refresh_wake();
@@ -928,17 +936,17 @@ grpc::ServerUnaryReactor* Service::GetPvs(grpc::CallbackServerContext* ctx,
       return;
     }
     Scene& scene = *e->scene;
-    const double at = std::max(t, scene.time());
     const ViewerId v = scene.add_viewer();
     FrameResult result;
-    Status s = scene.frame(v, camera, at, scratch, &result);
+    Status s = scene.frame(v, camera, t, scratch, &result, Scene::Clock::Latest);
+    const double at = result.t;
     scene.remove_viewer(v);
     if (!s) {
       finish_unary(r, "GetPvs", invalid(s));
       return;
     }
     e->frames_served.fetch_add(1, std::memory_order_relaxed);
-    e->time.store(at, std::memory_order_relaxed);
+    store_max(e->time, at);
     e->refresh_wake();
     add_ids(result.pvs, resp->mutable_pvs());
     stats_to_proto(result.stats, resp->mutable_stats());

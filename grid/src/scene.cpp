@@ -553,10 +553,12 @@ void Scene::remove_viewer(ViewerId viewer) {
   s.viewers.erase(it);
 }
 
-Status Scene::apply_moves(double t, std::span<const Move> moves, MoveReport* report) {
+Status Scene::apply_moves(double t, std::span<const Move> moves, MoveReport* report,
+                          Clock clock) {
   Impl& s = *impl_;
   std::unique_lock<std::shared_mutex> lock(s.mu);
   if (!std::isfinite(t)) return Status::Error("t", "must be finite");
+  if (clock == Clock::Latest && s.time_set) t = std::fmax(t, s.time);
   if (s.time_set && t < s.time)
     return Status::Error("t", "time goes backwards: " + num(t) + " < " + num(s.time));
   for (std::size_t i = 0; i < moves.size(); ++i) {
@@ -572,7 +574,10 @@ Status Scene::apply_moves(double t, std::span<const Move> moves, MoveReport* rep
   }
   s.time = t;
   s.time_set = true;
-  if (report) *report = MoveReport{};
+  if (report) {
+    *report = MoveReport{};
+    report->t = t;
+  }
   for (const Move& m : moves) {
     const std::uint32_t slot = s.slot_of.find(m.id)->second;
     Obj& o = s.objs[slot];

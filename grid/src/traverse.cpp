@@ -609,7 +609,7 @@ void Traversal::run() {
 }  // namespace
 
 Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& scratch,
-                    FrameResult* out) {
+                    FrameResult* out, Clock clock) {
   Impl& s = *impl_;
   if (Status st = validate_camera(camera); !st) return st;
   if (!std::isfinite(t)) return Status::Error("t", "must be finite");
@@ -623,6 +623,7 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
   // Phase 1, exclusive: the clock, expired TBVs, TBVs beyond the grid.
   {
     std::unique_lock<std::shared_mutex> lock(s.mu);
+    if (clock == Clock::Latest && s.time_set) t = std::fmax(t, s.time);
     if (s.time_set && t < s.time) {
       char buf[128];
       std::snprintf(buf, sizeof buf, "time goes backwards: %.17g < %.17g", t, s.time);
@@ -756,6 +757,7 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
   }
   s.unclaimed.clear();
 
+  out->t = t;
   out->pvs.clear();
   out->wake.clear();
   for (std::uint32_t slot : pvs) {

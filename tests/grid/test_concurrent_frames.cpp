@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <thread>
 #include <vector>
@@ -84,14 +85,12 @@ TEST(ConcurrentFrames, MovesAndViewerChangesDuringFrames) {
     const std::vector<Camera> path = test::random_camera_path(desc, s);
     for (std::size_t i = 0; !stop.load(); i = (i + 1) % path.size()) {
       FrameResult r;
-      // Other threads move the clock on: frame at the latest time.
-      const Status st = scene->frame(v, path[i], std::max(clock.load(), scene->time()), scratch, &r);
-      if (!st) {
-        // Only "time goes backwards" can happen, when a move lands between
-        // reading the time and the frame taking it.
-        EXPECT_EQ(st.field, "t") << st.str();
-        continue;
-      }
+      // Other threads move the clock on between reading it and the frame:
+      // Clock::Latest takes the scene's time then, atomically.
+      const double asked = clock.load();
+      const Status st = scene->frame(v, path[i], asked, scratch, &r, Scene::Clock::Latest);
+      ASSERT_TRUE(st) << st.str();
+      EXPECT_GE(r.t, asked);
       // (check_stats assumes one move batch per frame; here many land
       // between a viewer's frames, so only the result's shape is checked.)
       EXPECT_TRUE(std::is_sorted(r.pvs.begin(), r.pvs.end()));
@@ -109,9 +108,11 @@ TEST(ConcurrentFrames, MovesAndViewerChangesDuringFrames) {
   for (int step = 0; step < test::scaled(200); ++step) {
     t += 0.05;
     clock.store(t);
-    ASSERT_TRUE(scene->apply_moves(t, mover.step(0.05)));
+    MoveReport report;
+    ASSERT_TRUE(scene->apply_moves(t, mover.step(0.05), &report, Scene::Clock::Latest));
+    EXPECT_GE(report.t, t);
     if (step % 20 == 0) scene->remove_viewer(scene->add_viewer());
-    std::this_thread::yield();
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
   }
   stop.store(true);
   for (std::thread& th : threads) th.join();
@@ -121,6 +122,33 @@ TEST(ConcurrentFrames, MovesAndViewerChangesDuringFrames) {
   // nothing is left claimed by the departed viewers.
   const std::vector<ObjectId> wake = scene->wake_set();
   EXPECT_LE(wake.size(), scene->dynamic_count());
+}
+
+TEST(SceneClock, StrictRefusesAndLatestTakesTheSceneTime) {
+  SceneDesc desc;
+  desc.bounds_max = Vec3(10.0);
+  desc.objects = {test::dynamic(test::sphere(1, Vec3(5.0), 0.5), 1.0)};
+  std::unique_ptr<Scene> scene;
+  ASSERT_TRUE(Scene::create(desc, SceneOptions{}, &scene));
+  const ViewerId v = scene->add_viewer();
+  Scratch scratch;
+  Camera cam;
+  cam.eye = Vec3(5.0, 5.0, 9.5);
+  FrameResult r;
+  ASSERT_TRUE(scene->frame(v, cam, 2.0, scratch, &r));
+  EXPECT_EQ(r.t, 2.0);
+  EXPECT_EQ(scene->frame(v, cam, 1.0, scratch, &r).field, "t");
+  ASSERT_TRUE(scene->frame(v, cam, 1.0, scratch, &r, Scene::Clock::Latest));
+  EXPECT_EQ(r.t, 2.0);
+  const std::vector<Move> moves = {{1, Vec3(5.0, 5.0, 5.5)}};
+  EXPECT_EQ(scene->apply_moves(1.5, moves).field, "t");
+  MoveReport report;
+  ASSERT_TRUE(scene->apply_moves(1.5, moves, &report, Scene::Clock::Latest));
+  EXPECT_EQ(report.t, 2.0);
+  EXPECT_EQ(report.applied, 1u);
+  ASSERT_TRUE(scene->apply_moves(3.0, moves, &report, Scene::Clock::Latest));
+  EXPECT_EQ(report.t, 3.0);
+  EXPECT_EQ(scene->time(), 3.0);
 }
 
 }  // namespace

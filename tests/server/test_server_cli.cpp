@@ -97,5 +97,32 @@ TEST(ServerCli, ViewMatchesReplay) {
   EXPECT_EQ(server.terminate(), 0);
 }
 
+// Many viewers of one scene at once: their frames run in parallel on the
+// server and share the scene's clock; every stream must be answered without
+// error (a frame racing another's clock once failed with "time goes
+// backwards"), and the report must count what was answered.
+TEST(ServerCli, LoadgenManyViewersOfOneScene) {
+  const std::string examples = std::string(VOXVIS_SOURCE_DIR) + "/examples/paper";
+  ServerProcess server;
+  server.extra_args() = {"--scene", "paper=" + examples + "/scene.json"};
+  ASSERT_TRUE(server.start());
+  const std::string report = server.path("loadgen.json");
+  const ProcessResult r =
+      run_program({VOXVIS_CLI, "loadgen", "--server", server.address(), "--scene", "paper",
+                   "--frames", examples + "/frames.jsonl", "--viewers", "6", "--rate", "120",
+                   "--duration", "3", "--json", report, "-q"},
+                  server.dir());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(slurp(report), nullptr, false);
+  ASSERT_FALSE(j.is_discarded());
+  EXPECT_EQ(j.at("viewers"), 6);
+  EXPECT_TRUE(j.at("errors").empty()) << j.dump();
+  EXPECT_GT(j.at("frames").get<double>(), 6.0);
+  v1::SceneInfo info;
+  ASSERT_TRUE(server.api().stats("paper", &info).ok());
+  EXPECT_GE(static_cast<double>(info.frames_served()), j.at("frames").get<double>());
+  EXPECT_EQ(server.terminate(), 0);
+}
+
 }  // namespace
 }  // namespace voxvis::servertest

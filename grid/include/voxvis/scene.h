@@ -83,6 +83,7 @@ struct FrameStats {
 };
 
 struct FrameResult {
+  double t = 0.0;              ///< Scene time the frame was computed at, seconds.
   std::vector<ObjectId> pvs;   ///< Ascending ids that may be visible.
   std::vector<ObjectId> wake;  ///< Ascending ids of dynamic objects whose fresh
                                ///< positions the engine needs: PVS members and
@@ -93,6 +94,7 @@ struct FrameResult {
 /// What Scene::apply_moves saw. Moves are applied even when too fast; such an
 /// object is revealed (its TBV can no longer be trusted) and counted here.
 struct MoveReport {
+  double t = 0.0;  ///< Scene time the moves were applied at, seconds.
   std::uint32_t applied = 0;
   std::vector<ObjectId> too_fast;  ///< Ids that moved faster than max_speed.
 };
@@ -150,16 +152,26 @@ class Scene {
   /// Removes a viewer and releases its claim on the objects of its last PVS.
   void remove_viewer(ViewerId viewer);
 
+  /// How frame() and apply_moves() treat a time earlier than time().
+  enum class Clock {
+    Strict,  ///< Refused: the caller owns the scene's clock.
+    Latest,  ///< Taken as time(), atomically: for callers whose viewers and
+             ///< simulations share one clock and may race (a later time only
+             ///< makes TBVs expire sooner and speed checks stricter).
+  };
+
   /// Sets dynamic objects' centres at time `t` (seconds, not earlier than
-  /// time()). Validated whole before anything changes: unknown or static ids,
-  /// non-finite values and time going backwards are refused.
-  Status apply_moves(double t, std::span<const Move> moves, MoveReport* report = nullptr);
+  /// time() unless `clock` is Latest). Validated whole before anything
+  /// changes: unknown or static ids, non-finite values and time going
+  /// backwards are refused.
+  Status apply_moves(double t, std::span<const Move> moves, MoveReport* report = nullptr,
+                     Clock clock = Clock::Strict);
 
   /// Computes the viewer's PVS at time `t` (not earlier than time()).
   /// Validates the camera (finite, up not parallel to dir, 0 < fov < 180,
   /// 0 < near < far, aspect in range) before touching any state.
   Status frame(ViewerId viewer, const Camera& camera, double t, Scratch& scratch,
-               FrameResult* out);
+               FrameResult* out, Clock clock = Clock::Strict);
 
   /// Dynamic objects whose positions the engine currently uses: those in any
   /// viewer's last PVS and those not yet under a TBV. Ascending ids.
