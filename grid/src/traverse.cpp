@@ -620,7 +620,7 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
   FrameStats st;
   std::vector<std::uint32_t> wake;
 
-  // Phase 1, exclusive: the clock, expired TBVs, TBVs beyond the grid.
+  // Phase 1, exclusive: the clock and expired TBVs.
   {
     std::unique_lock<std::shared_mutex> lock(s.mu);
     if (clock == Clock::Latest && s.time_set) t = std::fmax(t, s.time);
@@ -651,21 +651,6 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
       ++st.tbvs_expired;
       wake.push_back(e.slot);
     }
-
-    // TBVs reaching beyond the grid: their outer part has no voxels.
-    if (!s.outside_tbvs.empty()) {
-      w.reveals.assign(s.outside_tbvs.begin(), s.outside_tbvs.end());
-      for (std::uint32_t slot : w.reveals) {
-        ++st.outside_tested;
-        const Obj& o = s.objs[slot];
-        if (o.under_tbv && outside_part_visible(wf, s.spec, o.tbv_lo, o.tbv_hi)) {
-          s.reveal(slot);
-          ++st.tbvs_revealed;
-          wake.push_back(slot);
-        }
-      }
-      w.reveals.clear();
-    }
   }
 
   // Phase 2, shared: the traversal and the tests beyond the grid only read
@@ -685,6 +670,20 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
           w.obj_mark[slot] = w.frame;
           w.pvs.push_back(slot);
         }
+      }
+    }
+
+    // TBVs reaching beyond the grid: their outer part has no voxels. Tested
+    // here, under the same lock as the traversal, so that a TBV another
+    // viewer's frame made since phase 1 is seen by one or the other.
+    for (std::uint32_t slot : s.outside_tbvs) {
+      ++st.outside_tested;
+      const Obj& o = s.objs[slot];
+      if (!o.under_tbv || !outside_part_visible(wf, s.spec, o.tbv_lo, o.tbv_hi)) continue;
+      w.deferred.push_back(slot);
+      if (w.obj_mark[slot] != w.frame && wf.may_intersect_box(o.box_lo(), o.box_hi())) {
+        w.obj_mark[slot] = w.frame;
+        w.pvs.push_back(slot);
       }
     }
 
