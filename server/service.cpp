@@ -86,6 +86,102 @@ void SceneEntry::unsubscribe(const std::shared_ptr<WakeSink>& sink) {
 }
 
 // ---------------------------------------------------------------------------
+// What both streams share: admission (token, registration for shutdown), the
+// stop-then-finish protocol, and a lifetime that outlasts gRPC's OnDone until
+// the last pool job referencing the stream has ended. `Self` provides
+// advance_locked() (writes, reads, Finish), on_stop_locked() and on_done()
+// (hooks), and on_release() (called once, just before deletion).
+
+template <class Req, class Resp, class Self>
+class StreamReactor : public grpc::ServerBidiReactor<Req, Resp>, public Stream {
+ public:
+  void stop_if(const SceneEntry* scene, const grpc::Status& status) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (scene && entry_.get() != scene) return;
+    stop_locked(status);
+    self().advance_locked();
+  }
+
+  void OnWriteDone(bool ok) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    writing_ = false;
+    if (!ok) stop_locked(grpc::Status(grpc::StatusCode::CANCELLED, "client gone"));
+    self().advance_locked();
+  }
+
+  void OnCancel() override {
+    std::lock_guard<std::mutex> lock(mu_);
+    stop_locked(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled"));
+    self().advance_locked();
+  }
+
+  void OnDone() override {
+    if (registered_) svc_->remove_stream(this);
+    self().on_done();
+    bool del;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      done_ = true;
+      del = jobs_ == 0;
+    }
+    if (del) release();
+  }
+
+ protected:
+  StreamReactor(Service* svc, const char* method) : svc_(svc), method_(method) {}
+
+  /// Checks the call's token and registers the stream. Call from the
+  /// derived constructor without holding mu_ (the service's stream lock comes
+  /// first in the lock order).
+  grpc::Status admit(grpc::CallbackServerContext* ctx, Role role) {
+    const grpc::Status auth = svc_->tokens().authorize(ctx, role);
+    registered_ = svc_->add_stream(this);
+    if (!auth.ok()) return auth;
+    if (!registered_) return grpc::Status(grpc::StatusCode::UNAVAILABLE, "server is shutting down");
+    return grpc::Status::OK;
+  }
+
+  void stop_locked(const grpc::Status& status) {
+    if (!stopping_) {
+      stopping_ = true;
+      stop_status_ = status;
+    }
+    self().on_stop_locked();
+  }
+
+  /// Finish with the stop status, or OK when the client closed.
+  void finish_locked() {
+    finished_ = true;
+    const grpc::Status s = stopping_ ? stop_status_ : grpc::Status::OK;
+    if (!s.ok() && s.error_code() != grpc::StatusCode::CANCELLED) svc_->count_error(method_, s);
+    this->Finish(s);
+  }
+
+  /// Counts the end of a pool job; true when the stream is to be released.
+  bool end_job_locked() {
+    --jobs_;
+    return done_ && jobs_ == 0;
+  }
+
+  void release() {
+    self().on_release();
+    delete &self();
+  }
+
+  Service* svc_;
+  const char* method_;
+  bool registered_ = false;  // Written before any reaction can run.
+  std::mutex mu_;
+  std::shared_ptr<SceneEntry> entry_;  // Guarded by mu_; set by the first message.
+  bool writing_ = false, stopping_ = false, finished_ = false, done_ = false;  // Guarded by mu_.
+  grpc::Status stop_status_;           // Guarded by mu_.
+  int jobs_ = 0;                       // Guarded by mu_: pool jobs referencing this.
+
+ private:
+  Self& self() { return static_cast<Self&>(*this); }
+};
+
+// ---------------------------------------------------------------------------
 // View: one viewer's frames.
 //
 // State machine (all under mu_): a read is always outstanding until the
@@ -96,28 +192,19 @@ void SceneEntry::unsubscribe(const std::shared_ptr<WakeSink>& sink) {
 // request, one answer and one write in flight. Deltas are taken at write time
 // against the last PVS written, so skipped frames never break them.
 
-class ViewReactor final : public grpc::ServerBidiReactor<v1::ViewRequest, v1::ViewResponse>,
-                          public Stream {
- public:
-  ViewReactor(Service* svc, grpc::CallbackServerContext* ctx) : svc_(svc) {
-    grpc::Status auth = svc_->tokens().authorize(ctx, Role::Viewer);
-    const bool registered = svc_->add_stream(this);
-    std::lock_guard<std::mutex> lock(mu_);
-    registered_ = registered;
-    if (!auth.ok()) {
-      stop_locked(auth);
-    } else if (!registered) {
-      stop_locked(grpc::Status(grpc::StatusCode::UNAVAILABLE, "server is shutting down"));
-    } else {
-      StartRead(&read_);
-    }
-    advance_locked();
-  }
+class ViewReactor final
+    : public StreamReactor<v1::ViewRequest, v1::ViewResponse, ViewReactor> {
+  friend class StreamReactor<v1::ViewRequest, v1::ViewResponse, ViewReactor>;
 
-  void stop_if(const SceneEntry* scene, const grpc::Status& status) override {
+ public:
+  ViewReactor(Service* svc, grpc::CallbackServerContext* ctx) : StreamReactor(svc, "View") {
+    const grpc::Status admitted = admit(ctx, Role::Viewer);
     std::lock_guard<std::mutex> lock(mu_);
-    if (scene && entry_.get() != scene) return;
-    stop_locked(status);
+    if (admitted.ok()) {
+      StartRead(&read_);
+    } else {
+      stop_locked(admitted);
+    }
     advance_locked();
   }
 
@@ -134,30 +221,6 @@ class ViewReactor final : public grpc::ServerBidiReactor<v1::ViewRequest, v1::Vi
       }
     }
     advance_locked();
-  }
-
-  void OnWriteDone(bool ok) override {
-    std::lock_guard<std::mutex> lock(mu_);
-    writing_ = false;
-    if (!ok) stop_locked(grpc::Status(grpc::StatusCode::CANCELLED, "client gone"));
-    advance_locked();
-  }
-
-  void OnCancel() override {
-    std::lock_guard<std::mutex> lock(mu_);
-    stop_locked(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled"));
-    advance_locked();
-  }
-
-  void OnDone() override {
-    if (registered_) svc_->remove_stream(this);
-    bool del;
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      done_ = true;
-      del = jobs_ == 0;
-    }
-    if (del) release();
   }
 
  private:
@@ -212,13 +275,8 @@ class ViewReactor final : public grpc::ServerBidiReactor<v1::ViewRequest, v1::Vi
     return grpc::Status::OK;
   }
 
-  void stop_locked(const grpc::Status& status) {
-    if (!stopping_) {
-      stopping_ = true;
-      stop_status_ = status;
-    }
-    pending_.reset();
-  }
+  void on_stop_locked() { pending_.reset(); }
+  void on_done() {}
 
   void advance_locked() {
     if (finished_) return;
@@ -237,12 +295,7 @@ class ViewReactor final : public grpc::ServerBidiReactor<v1::ViewRequest, v1::Vi
       });
     }
     const bool idle = !writing_ && !computing_ && !ready_;
-    if (idle && (stopping_ || (eof_ && !pending_))) {
-      finished_ = true;
-      const grpc::Status s = stopping_ ? stop_status_ : grpc::Status::OK;
-      if (!s.ok() && s.error_code() != grpc::StatusCode::CANCELLED) svc_->count_error("View", s);
-      Finish(s);
-    }
+    if (idle && (stopping_ || (eof_ && !pending_))) finish_locked();
   }
 
   // Pool job.
@@ -278,14 +331,13 @@ class ViewReactor final : public grpc::ServerBidiReactor<v1::ViewRequest, v1::Vi
     {
       std::lock_guard<std::mutex> lock(mu_);
       computing_ = false;
-      --jobs_;
       if (ready) {
         ready_ = std::move(ready);
       } else {
         stop_locked(error);
       }
       advance_locked();
-      del = done_ && jobs_ == 0;
+      del = end_job_locked();
     }
     if (del) release();
   }
@@ -318,26 +370,20 @@ class ViewReactor final : public grpc::ServerBidiReactor<v1::ViewRequest, v1::Vi
     StartWrite(&write_);
   }
 
-  void release() {
-    if (entry_) {
-      entry_->viewers.fetch_sub(1, std::memory_order_relaxed);
-      if (entry_->metrics) entry_->metrics->viewers(-1);
-      if (viewer_added_) {
-        // The viewer's claims on its last PVS go with it.
-        svc_->pool().submit([entry = entry_, v = viewer_](Scratch&) {
-          if (!entry->deleted.load()) entry->scene->remove_viewer(v);
-        });
-      }
+  void on_release() {
+    if (!entry_) return;
+    entry_->viewers.fetch_sub(1, std::memory_order_relaxed);
+    if (entry_->metrics) entry_->metrics->viewers(-1);
+    if (viewer_added_) {
+      // The viewer's claims on its last PVS go with it.
+      svc_->pool().submit([entry = entry_, v = viewer_](Scratch&) {
+        if (!entry->deleted.load()) entry->scene->remove_viewer(v);
+      });
     }
-    delete this;
   }
 
-  Service* svc_;
-  bool registered_ = false;
-  std::mutex mu_;
   v1::ViewRequest read_;                 // Owned by the outstanding read.
   v1::ViewResponse write_;               // Owned by the outstanding write.
-  std::shared_ptr<SceneEntry> entry_;    // Guarded by mu_; set by the first request.
   v1::PvsEncoding encoding_ = v1::PVS_FULL;
   bool have_frame_ = false;
   std::uint64_t last_frame_ = 0;
@@ -346,10 +392,7 @@ class ViewReactor final : public grpc::ServerBidiReactor<v1::ViewRequest, v1::Vi
   std::uint32_t skipped_ = 0;            // Guarded by mu_.
   std::optional<Ready> ready_;           // Guarded by mu_.
   std::vector<ObjectId> last_sent_;      // Guarded by mu_: PVS of the last answer written.
-  bool computing_ = false, writing_ = false, eof_ = false;
-  bool stopping_ = false, finished_ = false, done_ = false;
-  grpc::Status stop_status_;
-  int jobs_ = 0;                         // Guarded by mu_: pool jobs referencing this.
+  bool computing_ = false, eof_ = false;  // Guarded by mu_.
   // Touched by this stream's jobs only, one at a time (handed over through mu_).
   bool viewer_added_ = false;
   ViewerId viewer_ = 0;
@@ -365,29 +408,17 @@ class ViewReactor final : public grpc::ServerBidiReactor<v1::ViewRequest, v1::Vi
 // last list written.
 
 class SimReactor final
-    : public grpc::ServerBidiReactor<v1::SimulateRequest, v1::SimulateResponse>,
-      public Stream {
+    : public StreamReactor<v1::SimulateRequest, v1::SimulateResponse, SimReactor> {
+  friend class StreamReactor<v1::SimulateRequest, v1::SimulateResponse, SimReactor>;
+
  public:
-  SimReactor(Service* svc, grpc::CallbackServerContext* ctx) : svc_(svc) {
+  SimReactor(Service* svc, grpc::CallbackServerContext* ctx) : StreamReactor(svc, "Simulate") {
     sink_ = std::make_shared<WakeSink>();
     sink_->reactor = this;
-    grpc::Status auth = svc_->tokens().authorize(ctx, Role::Simulation);
-    const bool registered = svc_->add_stream(this);
+    const grpc::Status admitted = admit(ctx, Role::Simulation);
     std::lock_guard<std::mutex> lock(mu_);
-    registered_ = registered;
-    if (!auth.ok()) {
-      stop_locked(auth);
-    } else if (!registered) {
-      stop_locked(grpc::Status(grpc::StatusCode::UNAVAILABLE, "server is shutting down"));
-    }
-    advance_locked();
-  }
-
-  void stop_if(const SceneEntry* scene, const grpc::Status& status) override {
-    std::lock_guard<std::mutex> lock(mu_);
-    if (scene && entry_.get() != scene) return;
-    stop_locked(status);
-    advance_locked();
+    if (!admitted.ok()) stop_locked(admitted);
+    advance_locked();  // Starts the first read.
   }
 
   void on_wake(std::shared_ptr<const WakeSnapshot> snap) {
@@ -408,36 +439,14 @@ class SimReactor final
     advance_locked();
   }
 
-  void OnWriteDone(bool ok) override {
-    std::lock_guard<std::mutex> lock(mu_);
-    writing_ = false;
-    if (!ok) stop_locked(grpc::Status(grpc::StatusCode::CANCELLED, "client gone"));
-    advance_locked();
-  }
-
-  void OnCancel() override {
-    std::lock_guard<std::mutex> lock(mu_);
-    stop_locked(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled"));
-    advance_locked();
-  }
-
-  void OnDone() override {
-    if (registered_) svc_->remove_stream(this);
-    {
-      // From here on the scene delivers nothing to this stream.
-      std::lock_guard<std::mutex> lock(sink_->mu);
-      sink_->reactor = nullptr;
-    }
-    bool del;
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      done_ = true;
-      del = jobs_ == 0;
-    }
-    if (del) release();
-  }
-
  private:
+  void on_done() {
+    // From here on the scene delivers nothing to this stream.
+    std::lock_guard<std::mutex> lock(sink_->mu);
+    sink_->reactor = nullptr;
+  }
+  void on_stop_locked() {}
+
   grpc::Status accept_locked() {
     const v1::SimulateRequest& r = read_;
     if (!entry_) {
@@ -506,7 +515,6 @@ class SimReactor final
     bool del;
     {
       std::lock_guard<std::mutex> lock(mu_);
-      --jobs_;
       if (ack) {
         applying_ = false;
         ack_ = std::move(ack);
@@ -515,16 +523,9 @@ class SimReactor final
         stop_locked(status);
       }
       advance_locked();
-      del = done_ && jobs_ == 0;
+      del = end_job_locked();
     }
     if (del) release();
-  }
-
-  void stop_locked(const grpc::Status& status) {
-    if (!stopping_) {
-      stopping_ = true;
-      stop_status_ = status;
-    }
   }
 
   void advance_locked() {
@@ -558,37 +559,23 @@ class SimReactor final
       StartRead(&read_);
     }
     const bool idle = !writing_ && !applying_ && !ack_;
-    if (idle && (stopping_ || eof_)) {
-      finished_ = true;
-      const grpc::Status s = stopping_ ? stop_status_ : grpc::Status::OK;
-      if (!s.ok() && s.error_code() != grpc::StatusCode::CANCELLED) svc_->count_error("Simulate", s);
-      Finish(s);
-    }
+    if (idle && (stopping_ || eof_)) finish_locked();
   }
 
-  void release() {
-    if (entry_) {
-      entry_->simulators.fetch_sub(1, std::memory_order_relaxed);
-      entry_->unsubscribe(sink_);
-    }
-    delete this;
+  void on_release() {
+    if (!entry_) return;
+    entry_->simulators.fetch_sub(1, std::memory_order_relaxed);
+    entry_->unsubscribe(sink_);
   }
 
-  Service* svc_;
-  bool registered_ = false;
   std::shared_ptr<WakeSink> sink_;
-  std::mutex mu_;
   v1::SimulateRequest read_;
   v1::SimulateResponse write_;
-  std::shared_ptr<SceneEntry> entry_;  // Guarded by mu_.
   bool have_t_ = false;
   double last_t_ = 0.0;
   std::optional<v1::MoveAck> ack_;     // Guarded by mu_: acknowledgement waiting to be written.
   std::shared_ptr<const WakeSnapshot> wake_latest_, wake_sent_;  // Guarded by mu_.
-  bool reading_ = false, applying_ = false, writing_ = false, eof_ = false;
-  bool stopping_ = false, finished_ = false, done_ = false;
-  grpc::Status stop_status_;
-  int jobs_ = 0;
+  bool reading_ = false, applying_ = false, eof_ = false;  // Guarded by mu_.
 };
 
 void deliver_wake(SimReactor* r, std::shared_ptr<const WakeSnapshot> snap) {

@@ -667,45 +667,6 @@ grpc::Status generic_bidi(const std::shared_ptr<grpc::Channel>& channel, const s
 // ---------------------------------------------------------------------------
 // Scenes, cameras and conversions
 
-void to_proto(const Vec3& v, v1::Vec3* out) {
-  out->set_x(v.x);
-  out->set_y(v.y);
-  out->set_z(v.z);
-}
-
-void to_proto(const Camera& c, v1::Camera* out) {
-  to_proto(c.eye, out->mutable_eye());
-  to_proto(c.dir, out->mutable_dir());
-  to_proto(c.up, out->mutable_up());
-  out->set_fov_y_deg(c.fov_y_deg);
-  out->set_aspect(c.aspect);
-  out->set_near(c.near);
-  out->set_far(c.far);
-}
-
-void to_proto(const SceneDesc& scene, v1::SceneDescription* out) {
-  to_proto(scene.bounds_min, out->mutable_bounds_min());
-  to_proto(scene.bounds_max, out->mutable_bounds_max());
-  if (scene.grid) {
-    out->mutable_grid()->set_nx(static_cast<std::uint32_t>(scene.grid->x));
-    out->mutable_grid()->set_ny(static_cast<std::uint32_t>(scene.grid->y));
-    out->mutable_grid()->set_nz(static_cast<std::uint32_t>(scene.grid->z));
-  }
-  for (const ObjectDesc& o : scene.objects) {
-    v1::Object* po = out->add_objects();
-    po->set_id(o.id);
-    if (o.shape == Shape::Sphere) {
-      to_proto(o.center, po->mutable_sphere()->mutable_center());
-      po->mutable_sphere()->set_radius(o.radius);
-    } else {
-      to_proto(o.center - o.half_extent, po->mutable_box()->mutable_min());
-      to_proto(o.center + o.half_extent, po->mutable_box()->mutable_max());
-    }
-    po->set_dynamic(o.dynamic);
-    if (o.dynamic) po->set_max_speed(o.max_speed);
-  }
-}
-
 std::vector<ObjectId> ids_of(const google::protobuf::RepeatedField<std::uint32_t>& ids) {
   return std::vector<ObjectId>(ids.begin(), ids.end());
 }

@@ -34,6 +34,7 @@
 
 #include "voxvis/scene.h"
 #include "voxvis/types.h"
+#include "voxvis/client.h"
 #include "voxvis/v1/voxvis.grpc.pb.h"
 
 namespace voxvis::servertest {
@@ -291,9 +292,9 @@ grpc::Status generic_bidi(const std::shared_ptr<grpc::Channel>& channel, const s
 // ---------------------------------------------------------------------------
 // Scenes, cameras and conversions shared by the tests
 
-void to_proto(const Vec3& v, v1::Vec3* out);
-void to_proto(const Camera& c, v1::Camera* out);
-void to_proto(const SceneDesc& scene, v1::SceneDescription* out);
+// Engine values as messages: the client library's conversions (the server
+// converts back with its own code, so the two are checked against each other).
+using voxvis::client::to_proto;
 std::vector<ObjectId> ids_of(const google::protobuf::RepeatedField<std::uint32_t>& ids);
 /// The stats counters, everything but time_us, as one line of name=value pairs.
 std::string counters(const FrameStats& s);
