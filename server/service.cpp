@@ -632,6 +632,13 @@ void Service::finish_unary(grpc::ServerUnaryReactor* r, const char* method, cons
   r->Finish(s);
 }
 
+std::shared_ptr<SceneEntry> Service::find_or_finish(grpc::ServerUnaryReactor* r, const char* method,
+                                                    const std::string& id) {
+  std::shared_ptr<SceneEntry> e = find(id);
+  if (!e) finish_unary(r, method, grpc::Status(grpc::StatusCode::NOT_FOUND, "scene_id: no scene '" + id + "'"));
+  return e;
+}
+
 void Service::fill_info(const SceneEntry& e, v1::SceneInfo* out) const {
   out->set_scene_id(e.id);
   out->mutable_grid()->set_nx(static_cast<std::uint32_t>(e.grid.res.x));
@@ -883,12 +890,8 @@ grpc::ServerUnaryReactor* Service::GetSceneStats(grpc::CallbackServerContext* ct
     finish_unary(r, "GetSceneStats", a);
     return r;
   }
-  std::shared_ptr<SceneEntry> e = find(req->scene_id());
-  if (!e) {
-    finish_unary(r, "GetSceneStats",
-                 grpc::Status(grpc::StatusCode::NOT_FOUND, "scene_id: no scene '" + req->scene_id() + "'"));
-    return r;
-  }
+  std::shared_ptr<SceneEntry> e = find_or_finish(r, "GetSceneStats", req->scene_id());
+  if (!e) return r;
   fill_info(*e, resp);
   finish_unary(r, "GetSceneStats", grpc::Status::OK);
   return r;
@@ -901,12 +904,8 @@ grpc::ServerUnaryReactor* Service::GetPvs(grpc::CallbackServerContext* ctx,
     finish_unary(r, "GetPvs", a);
     return r;
   }
-  std::shared_ptr<SceneEntry> e = find(req->scene_id());
-  if (!e) {
-    finish_unary(r, "GetPvs",
-                 grpc::Status(grpc::StatusCode::NOT_FOUND, "scene_id: no scene '" + req->scene_id() + "'"));
-    return r;
-  }
+  std::shared_ptr<SceneEntry> e = find_or_finish(r, "GetPvs", req->scene_id());
+  if (!e) return r;
   Camera camera;
   if (Status s = camera_from_proto(req->camera(), req->has_camera(), &camera); !s) {
     finish_unary(r, "GetPvs", invalid(s));

@@ -155,6 +155,9 @@ class Service final : public v1::Visibility::CallbackService {
 
  private:
   void finish_unary(grpc::ServerUnaryReactor* r, const char* method, const grpc::Status& s);
+  /// The scene, or null after finishing the call with NOT_FOUND.
+  std::shared_ptr<SceneEntry> find_or_finish(grpc::ServerUnaryReactor* r, const char* method,
+                                             const std::string& id);
   void fill_info(const SceneEntry& e, v1::SceneInfo* out) const;
   /// Checks the budget, builds, persists (when `persist`) and registers a
   /// scene. INVALID_ARGUMENT, ALREADY_EXISTS, RESOURCE_EXHAUSTED or INTERNAL.

@@ -17,6 +17,8 @@
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include "files.h"
 #include <nlohmann/json.hpp>
 
 extern char** environ;
@@ -34,25 +36,9 @@ struct Result {
   double seconds = 0.0;
 };
 
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-void spit(const fs::path& p, const std::string& text) {
-  std::ofstream out(p, std::ios::binary);
-  out << text;
-}
-
-std::vector<std::string> lines_of(const std::string& text) {
-  std::vector<std::string> lines;
-  std::istringstream in(text);
-  std::string line;
-  while (std::getline(in, line)) lines.push_back(line);
-  return lines;
-}
+using voxvis::test::lines_of;
+using voxvis::test::slurp;
+using voxvis::test::spit;
 
 class Cli : public ::testing::Test {
  protected:

@@ -32,6 +32,7 @@
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 
+#include "files.h"
 #include "voxvis/scene.h"
 #include "voxvis/types.h"
 #include "voxvis/client.h"
@@ -46,9 +47,9 @@ using Seconds = std::chrono::duration<double>;
 
 /// Creates a fresh directory under $TMPDIR (or /tmp); aborts the test on error.
 std::string make_temp_dir(const std::string& prefix);
-std::string slurp(const std::string& path);
-void spit(const std::string& path, const std::string& text);
-std::vector<std::string> lines_of(const std::string& text);
+using test::lines_of;
+using test::slurp;
+using test::spit;
 
 /// Polls `done` every few milliseconds until it is true or `timeout` passes.
 template <class Pred>
