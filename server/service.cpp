@@ -243,12 +243,13 @@ class ViewReactor final
     if (!entry_) {
       if (r.scene_id().empty())
         return invalid(Status::Error("scene_id", "the first message of a stream must name the scene"));
+      if (r.encoding() != v1::PVS_FULL && r.encoding() != v1::PVS_DELTA)
+        return invalid(Status::Error("encoding", "unknown value " + std::to_string(r.encoding())));
+      // entry_ set means counted as a viewer (released in on_release).
       entry_ = svc_->find(r.scene_id());
       if (!entry_)
         return grpc::Status(grpc::StatusCode::NOT_FOUND, "scene_id: no scene '" + r.scene_id() + "'");
       encoding_ = r.encoding();
-      if (encoding_ != v1::PVS_FULL && encoding_ != v1::PVS_DELTA)
-        return invalid(Status::Error("encoding", "unknown value " + std::to_string(encoding_)));
       entry_->viewers.fetch_add(1, std::memory_order_relaxed);
       if (entry_->metrics) entry_->metrics->viewers(+1);
     } else if (!r.scene_id().empty() && r.scene_id() != entry_->id) {
