@@ -7,6 +7,7 @@ VOXVIS_PACKAGES=(
   libglm-dev nlohmann-json3-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc prometheus-cpp-dev
+  openssl
 )
 
 voxvis_ensure_deps() {
