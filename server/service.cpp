@@ -484,7 +484,7 @@ class SimReactor final
     return grpc::Status::OK;
   }
 
-  // Strand job.
+  // Job of the scene's strand.
   void apply(SceneEntry& e, std::uint64_t seq, double t, const std::vector<Move>& moves) {
     if (e.deleted.load()) {
       job_done(std::nullopt,

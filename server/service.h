@@ -3,10 +3,12 @@
 //
 // Threads: gRPC's callback threads run the reactors' reactions, which only
 // check messages, update per-stream state under the stream's mutex, and post
-// work; they never wait for a scene. Every operation on a Scene runs as a job
-// of that scene's Strand on the WorkerPool (pool.h). A stream has at most one
-// job and one write in flight, and keeps at most one newer request and one
-// newer answer: memory per stream is bounded whatever the client does.
+// work; they never wait for a scene. Frames and GetPvs run as jobs on the
+// WorkerPool (pool.h), frames of different viewers of a scene in parallel;
+// a scene's move batches run through its Strand, one at a time in order. A
+// stream has at most one job and one write in flight, and keeps at most one
+// newer request and one newer answer: memory per stream is bounded whatever
+// the client does.
 #pragma once
 
 #include <atomic>
