@@ -1,30 +1,19 @@
 #include "common.h"
 
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <cstring>
-#include <fstream>
-#include <sstream>
+
+#include "voxvis/client.h"
 
 namespace voxvis::cli {
 
 bool read_file(const std::string& path, std::string* text, FormatError* error) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    *error = FormatError{path, 0, "", std::string("cannot open: ") + std::strerror(errno)};
-    return false;
-  }
-  std::ostringstream buf;
-  buf << in.rdbuf();
-  if (in.bad()) {
-    *error = FormatError{path, 0, "", std::string("cannot read: ") + std::strerror(errno)};
-    return false;
-  }
-  *text = std::move(buf).str();
-  return true;
+  std::string message;
+  if (client::read_whole(path, text, &message)) return true;
+  *error = FormatError{path, 0, "", message};
+  return false;
 }
 
 bool blank(const std::string& line) {

@@ -14,25 +14,21 @@ namespace voxvis::client {
 // ---------------------------------------------------------------------------
 // Connection
 
-namespace {
-
 bool read_whole(const std::string& path, std::string* text, std::string* error) {
   std::ifstream in(path, std::ios::binary);
   if (!in) {
-    *error = path + ": cannot open: " + std::strerror(errno);
+    *error = std::string("cannot open: ") + std::strerror(errno);
     return false;
   }
   std::ostringstream buf;
   buf << in.rdbuf();
   if (in.bad()) {
-    *error = path + ": cannot read: " + std::strerror(errno);
+    *error = std::string("cannot read: ") + std::strerror(errno);
     return false;
   }
   *text = std::move(buf).str();
   return true;
 }
-
-}  // namespace
 
 std::shared_ptr<grpc::Channel> connect(const ConnectOptions& options, std::string* error) {
   if (options.address.empty()) {
@@ -57,7 +53,10 @@ std::shared_ptr<grpc::Channel> connect(const ConnectOptions& options, std::strin
     credentials = grpc::InsecureChannelCredentials();
   } else {
     grpc::SslCredentialsOptions ssl;
-    if (!read_whole(options.tls_ca_file, &ssl.pem_root_certs, error)) return nullptr;
+    if (!read_whole(options.tls_ca_file, &ssl.pem_root_certs, error)) {
+      *error = options.tls_ca_file + ": " + *error;
+      return nullptr;
+    }
     if (ssl.pem_root_certs.find("-----BEGIN CERTIFICATE-----") == std::string::npos) {
       *error = options.tls_ca_file + ": no PEM certificate in the file (expected -----BEGIN CERTIFICATE-----)";
       return nullptr;
@@ -73,7 +72,10 @@ std::shared_ptr<grpc::Channel> connect(const ConnectOptions& options, std::strin
 
 bool load_token(const std::string& path, std::string* token, std::string* error) {
   std::string text;
-  if (!read_whole(path, &text, error)) return false;
+  if (!read_whole(path, &text, error)) {
+    *error = path + ": " + *error;
+    return false;
+  }
   std::istringstream in(text);
   std::string line;
   int line_no = 0;

@@ -55,6 +55,10 @@ struct ConnectOptions {
 /// nullptr and sets `error`.
 std::shared_ptr<grpc::Channel> connect(const ConnectOptions& options, std::string* error);
 
+/// Reads a whole file; on error sets `error` to "cannot open: <reason>" or
+/// "cannot read: <reason>" (without the path).
+bool read_whole(const std::string& path, std::string* text, std::string* error);
+
 /// Reads a token file: the first line that is neither empty nor a comment
 /// ('#' first after leading blanks), trimmed. The token must be printable
 /// ASCII without white space. On error returns false and sets `error`
