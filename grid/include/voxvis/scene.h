@@ -167,9 +167,11 @@ class Scene {
   Status apply_moves(double t, std::span<const Move> moves, MoveReport* report = nullptr,
                      Clock clock = Clock::Strict);
 
-  /// Computes the viewer's PVS at time `t` (not earlier than time()).
-  /// Validates the camera (finite, up not parallel to dir, 0 < fov < 180,
-  /// 0 < near < far, aspect in range) before touching any state.
+  /// Computes the viewer's PVS at time `t` (not earlier than time() unless
+  /// `clock` is Latest; out->t says the time used). Validates the camera
+  /// (finite, up not parallel to dir, 0 < fov < 180, 0 < near < far, aspect
+  /// in range) before touching any state. May run in parallel with frames of
+  /// other viewers (see the thread-safety note above).
   Status frame(ViewerId viewer, const Camera& camera, double t, Scratch& scratch,
                FrameResult* out, Clock clock = Clock::Strict);
 
