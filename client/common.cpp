@@ -27,6 +27,18 @@ double percentile(const std::vector<double>& sorted, double p) {
   return sorted[std::min(i, sorted.size() - 1)];
 }
 
+Spread spread(std::vector<double> values) {
+  Spread out;
+  if (values.empty()) return out;
+  std::sort(values.begin(), values.end());
+  double sum = 0.0;
+  for (const double v : values) sum += v;
+  out.mean = sum / static_cast<double>(values.size());
+  out.median = percentile(values, 50.0);
+  out.p99 = percentile(values, 99.0);
+  return out;
+}
+
 std::string with_commas(std::uint64_t n) {
   std::string digits = std::to_string(n);
   std::string out;

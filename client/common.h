@@ -26,6 +26,12 @@ bool blank(const std::string& line);
 /// Nearest-rank percentile of sorted values, p in (0, 100].
 double percentile(const std::vector<double>& sorted, double p);
 
+/// Mean, median and 99th percentile of per-frame values (0 when empty).
+struct Spread {
+  double mean = 0.0, median = 0.0, p99 = 0.0;
+};
+Spread spread(std::vector<double> values);
+
 /// 1234567 -> "1,234,567".
 std::string with_commas(std::uint64_t n);
 

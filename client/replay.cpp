@@ -156,16 +156,12 @@ int run_replay(const ReplayArgs& args) {
 
   if (!args.quiet) {
     const double wall = progress.elapsed();
-    std::vector<double> sorted = times;
-    std::sort(sorted.begin(), sorted.end());
-    double sum = 0.0;
-    for (const double t : sorted) sum += t;
-    const double n = static_cast<double>(std::max<std::size_t>(sorted.size(), 1));
+    const Spread sp = spread(times);
+    const double n = static_cast<double>(std::max<std::size_t>(times.size(), 1));
     std::fprintf(stderr,
                  "voxvis: %zu frames in %.2f s; time_us mean %.1f, median %.1f, p99 %.1f; "
                  "mean PVS %.1f objects; too-fast moves %zu\n",
-                 index, wall, sum / n, percentile(sorted, 50.0), percentile(sorted, 99.0),
-                 pvs_total / n, too_fast);
+                 index, wall, sp.mean, sp.median, sp.p99, pvs_total / n, too_fast);
   }
   return kExitOk;
 }

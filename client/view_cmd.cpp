@@ -150,16 +150,12 @@ int run_view(const ViewArgs& args) {
 
   if (!args.quiet) {
     const double wall = progress.elapsed();
-    std::vector<double> sorted = round_trips_ms;
-    std::sort(sorted.begin(), sorted.end());
-    double sum = 0.0;
-    for (const double t : sorted) sum += t;
-    const double n = static_cast<double>(std::max<std::size_t>(sorted.size(), 1));
+    const Spread sp = spread(round_trips_ms);
+    const double n = static_cast<double>(std::max<std::size_t>(round_trips_ms.size(), 1));
     std::fprintf(stderr,
                  "voxvis: %zu frames in %.2f s; round trip ms mean %.2f, median %.2f, p99 %.2f; "
                  "mean PVS %.1f objects; too-fast moves %zu\n",
-                 index, wall, sum / n, percentile(sorted, 50.0), percentile(sorted, 99.0),
-                 pvs_total / n, too_fast);
+                 index, wall, sp.mean, sp.median, sp.p99, pvs_total / n, too_fast);
   }
   return kExitOk;
 }
