@@ -226,9 +226,9 @@ int run(int argc, char** argv) {
 
   if (replay_cmd->parsed()) {
     if (tbv_opt->count() > 0) {
-      if (!std::isfinite(tbv_period) || tbv_period < 0.0) {
+      if (!std::isfinite(tbv_period) || !(tbv_period == 0.0 || tbv_period >= 1e-3)) {
         return voxvis::cli::report(voxvis::FormatError{
-            "", 0, "--tbv-period", "must be a finite number of seconds >= 0 (0: adaptive)"});
+            "", 0, "--tbv-period", "must be 0 (adaptive) or a finite number of seconds >= 0.001"});
       }
       replay.tbv_period = tbv_period;
     }

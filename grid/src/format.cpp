@@ -818,6 +818,7 @@ bool parse_frame_dom(Checker& ck, const json& root, FrameInput* out) {
   if ((v = ck.require(root, top, "t", "seconds")) == nullptr || !ck.number(*v, "t", &frame.t)) {
     return false;
   }
+  if (const Status ts = validate_time("t", frame.t); !ts) return ck.fail(ts.field, ts.message);
   struct Vec3Field {
     const char* key;
     Vec3* dst;

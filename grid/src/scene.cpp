@@ -21,6 +21,15 @@ using detail::num;
 
 namespace {
 
+/// now + period, but always later than now: the frame's expiry loop takes
+/// every TBV expiring at or before its time, so a renewal that rounded back to
+/// `now` would expire again at once, for ever. Scene times are bounded
+/// (kMaxSceneTime) so that this only guards; it never shortens a period that
+/// rounding keeps.
+double expiry_after(double now, double period) {
+  return std::fmax(now + period, std::nextafter(now, std::numeric_limits<double>::infinity()));
+}
+
 constexpr double kUlp = std::numeric_limits<double>::epsilon();
 
 std::string obj_field(std::size_t i, const char* name) {
@@ -68,8 +77,8 @@ Status validate_desc(const SceneDesc& d, const SceneOptions& opt) {
                                        " voxels exceeds the limit of " +
                                        std::to_string(opt.max_voxels));
   }
-  if (!(opt.tbv_period >= 0.0) || !std::isfinite(opt.tbv_period))
-    return Status::Error("tbv_period", "must be finite and >= 0");
+  if (!(opt.tbv_period == 0.0 || opt.tbv_period >= 1e-3) || !std::isfinite(opt.tbv_period))
+    return Status::Error("tbv_period", "must be 0 (per object) or a finite number of seconds >= 0.001");
   if (!(opt.tbv_voxels > 0.0) || !std::isfinite(opt.tbv_voxels))
     return Status::Error("tbv_voxels", "must be finite and > 0");
   if (!(opt.tbv_max_voxels >= opt.tbv_voxels) || !std::isfinite(opt.tbv_max_voxels))
@@ -331,7 +340,7 @@ void Scene::Impl::make_tbv(std::uint32_t slot, double now) {
   Obj& o = objs[slot];
   const double period = tbv_box(slot, &o.tbv_lo, &o.tbv_hi);
   o.tbv_center = o.center;
-  o.tbv_expiry = o.max_speed > 0.0 ? now + period : std::numeric_limits<double>::infinity();
+  o.tbv_expiry = o.max_speed > 0.0 ? expiry_after(now, period) : std::numeric_limits<double>::infinity();
   o.under_tbv = true;
   ++wake_epoch;
   ++o.tbv_gen;
@@ -381,7 +390,7 @@ void Scene::Impl::renew_tbv(std::uint32_t slot, double now) {
                     (slot << 1) | 1u, o.tbv_gen);
         }
   }
-  o.tbv_expiry = now + period;
+  o.tbv_expiry = expiry_after(now, period);
   ++o.tbv_epoch;
   expiry.push({o.tbv_expiry, slot, o.tbv_epoch});
 }
@@ -410,6 +419,15 @@ void Scene::Impl::reveal(std::uint32_t slot) {
 
 // ---------------------------------------------------------------------------
 // Scene
+
+Status validate_time(const std::string& field, double t) {
+  if (std::isfinite(t) && std::fabs(t) <= kMaxSceneTime) return Status::Ok();
+  char range[64];
+  std::snprintf(range, sizeof range, "[%g, %g]", -kMaxSceneTime, kMaxSceneTime);
+  return Status::Error(field, std::string("must be a finite time in seconds within ") + range +
+                                  ", got " + num(t) +
+                                  " (milliseconds or microseconds since 1970 are out of range)");
+}
 
 Scene::Scene(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 Scene::~Scene() = default;
@@ -557,7 +575,7 @@ Status Scene::apply_moves(double t, std::span<const Move> moves, MoveReport* rep
                           Clock clock) {
   Impl& s = *impl_;
   std::unique_lock<std::shared_mutex> lock(s.mu);
-  if (!std::isfinite(t)) return Status::Error("t", "must be finite");
+  if (Status st = validate_time("t", t); !st) return st;
   if (clock == Clock::Latest && s.time_set) t = std::fmax(t, s.time);
   if (s.time_set && t < s.time)
     return Status::Error("t", "time goes backwards: " + num(t) + " < " + num(s.time));

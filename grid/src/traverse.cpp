@@ -612,7 +612,7 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
                     FrameResult* out, Clock clock) {
   Impl& s = *impl_;
   if (Status st = validate_camera(camera); !st) return st;
-  if (!std::isfinite(t)) return Status::Error("t", "must be finite");
+  if (Status st = validate_time("t", t); !st) return st;
   const auto start = std::chrono::steady_clock::now();
   Scratch::Impl& w = scratch.impl();
   w.begin(static_cast<std::size_t>(s.spec.voxel_count()), s.objs.size());

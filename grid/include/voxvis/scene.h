@@ -195,4 +195,8 @@ class Scene {
 /// Validates a camera as Scene::frame does. Exposed for the formats.
 Status validate_camera(const Camera& camera);
 
+/// Validates a scene time (finite, within ±kMaxSceneTime seconds) as
+/// Scene::frame and Scene::apply_moves do; the error names `field`.
+Status validate_time(const std::string& field, double t);
+
 }  // namespace voxvis

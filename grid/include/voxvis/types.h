@@ -23,6 +23,12 @@ using ObjectId = std::uint32_t;
 /// Beyond it squared distances lose the precision conservative tests need.
 inline constexpr double kMaxCoordinate = 1e12;
 
+/// Scene times are seconds within [-kMaxSceneTime, kMaxSceneTime], about
+/// ±317 years: seconds since 1970 fit, milliseconds and microseconds do not.
+/// Within it the shortest TBV validity period (1 ms) spans thousands of ulps
+/// of any time, so a renewal always moves an expiry forward.
+inline constexpr double kMaxSceneTime = 1e10;
+
 enum class Shape : std::uint8_t { Sphere, Box };
 
 /// One object of a scene. A box is axis-aligned; it moves rigidly (its centre
