@@ -1,8 +1,11 @@
-// The data directory: round trips, atomic overwrites, tolerance of damaged
-// positions files, and refusal of directories that cannot be written.
+// The data directory: round trips, atomic overwrites, quarantine of whatever
+// cannot be loaded (damaged or out-of-range positions, stray entries,
+// symlinks, which are never followed), and refusal of directories that cannot
+// be written.
 #include <gtest/gtest.h>
 
 #include <stdlib.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <filesystem>
@@ -32,13 +35,27 @@ class StoreTest : public ::testing::Test {
     fs::remove_all(root_, ec);
   }
 
-  std::vector<std::string> scene_dir_listing() const {
+  static std::vector<std::string> listing(const fs::path& dir) {
     std::vector<std::string> names;
-    for (const auto& e : fs::directory_iterator(fs::path(dir_) / "scenes")) {
+    std::error_code ec;
+    for (const auto& e : fs::directory_iterator(dir, ec)) {
       names.push_back(e.path().filename().string());
     }
     std::sort(names.begin(), names.end());
     return names;
+  }
+  std::vector<std::string> scene_dir_listing() const { return listing(fs::path(dir_) / "scenes"); }
+  std::vector<std::string> quarantine_listing() const {
+    return listing(fs::path(dir_) / "quarantine");
+  }
+  /// The one warning that starts with `path` + ": ", or "" (and the test fails).
+  std::string warning_about(const fs::path& path) const {
+    std::vector<std::string> found;
+    for (const std::string& w : warnings_) {
+      if (w.rfind(path.string() + ": ", 0) == 0) found.push_back(w);
+    }
+    EXPECT_EQ(found.size(), 1u) << "warnings naming " << path;
+    return found.empty() ? "" : found[0];
   }
   static std::string read(const fs::path& p) {
     std::ifstream in(p);
@@ -162,6 +179,10 @@ TEST_F(StoreTest, BadPositionsAreIgnoredWithAWarning) {
       {"short_center", R"({"format": "voxvis-positions/1", "t": 1, "moves": [{"id": 1, "center": [0,0]}]})"},
       {"string_coord", R"({"format": "voxvis-positions/1", "t": 1, "moves": [{"id": 1, "center": [0,"1",0]}]})"},
       {"array", "[]"},
+      // Finite but beyond the engine's clock (±kMaxSceneTime) or space (±kMaxCoordinate).
+      {"huge_t", R"({"format": "voxvis-positions/1", "t": 1e300, "moves": []})"},
+      {"early_t", R"({"format": "voxvis-positions/1", "t": -2e10, "moves": []})"},
+      {"far_center", R"({"format": "voxvis-positions/1", "t": 1, "moves": [{"id": 1, "center": [0,0,-1e13]}]})"},
   };
   for (const auto& [id, text] : cases) {
     ASSERT_TRUE(store.save_scene(id, "{}").ok);
@@ -186,22 +207,74 @@ TEST_F(StoreTest, BadPositionsAreIgnoredWithAWarning) {
                        [&](const std::string& w) { return w.find(needle) != std::string::npos; });
   };
   EXPECT_TRUE(has("moves[0].center[1]"));
+  EXPECT_TRUE(has("moves[0].center[2]"));
   EXPECT_TRUE(has("moves[0].id"));
+  EXPECT_TRUE(has("t: expected a finite number of seconds within"));
+
+  // Each positions file is in quarantine/, its content kept; the scenes stay.
+  std::vector<std::string> quarantined, kept;
+  for (const auto& [id, text] : cases) {
+    quarantined.push_back(id + ".positions");
+    kept.push_back(id + ".json");
+    EXPECT_EQ(read(fs::path(dir_) / "quarantine" / (id + ".positions")), text) << id;
+    const std::string moved = (fs::path(dir_) / "quarantine" / (id + ".positions")).string();
+    EXPECT_NE(warning_about(scenes / (id + ".positions")).find("moved to " + moved), std::string::npos);
+  }
+  std::sort(quarantined.begin(), quarantined.end());
+  std::sort(kept.begin(), kept.end());
+  EXPECT_EQ(quarantine_listing(), quarantined);
+  EXPECT_EQ(scene_dir_listing(), kept);
+  warnings_.clear();
+  EXPECT_EQ(store.load_all(warn_).size(), cases.size());
+  EXPECT_EQ(warnings_, std::vector<std::string>{}) << "quarantined once, then gone";
 }
 
-TEST_F(StoreTest, InvalidIdsAreSkippedAndRefused) {
+TEST_F(StoreTest, GoodPositionsAtTheLimitsLoad) {
+  SceneStore store;
+  ASSERT_TRUE(store.open(dir_).ok);
+  ASSERT_TRUE(store.save_scene("a", "{}").ok);
+  ASSERT_TRUE(store.save_positions("a", -kMaxSceneTime, {{1, {kMaxCoordinate, -kMaxCoordinate, 0}}}).ok);
+  const auto loaded = store.load_all(warn_);
+  EXPECT_TRUE(warnings_.empty());
+  ASSERT_EQ(loaded.size(), 1u);
+  EXPECT_EQ(loaded[0].t, -kMaxSceneTime);
+  ASSERT_EQ(loaded[0].positions.size(), 1u);
+  EXPECT_EQ(loaded[0].positions[0].center.x, kMaxCoordinate);
+  EXPECT_FALSE(fs::exists(fs::path(dir_) / "quarantine"));
+}
+
+TEST_F(StoreTest, StrayEntriesAreQuarantinedAndInvalidIdsRefused) {
   SceneStore store;
   ASSERT_TRUE(store.open(dir_).ok);
   const fs::path scenes = fs::path(dir_) / "scenes";
   ASSERT_TRUE(store.save_scene("ok", "{}").ok);
+  const std::string long_name = std::string(65, 'x') + ".json";
   write(scenes / "bad id.json", "{}");
-  write(scenes / (std::string(65, 'x') + ".json"), "{}");
+  write(scenes / long_name, "{}");
   write(scenes / "notes.txt", "hello");
   write(scenes / "orphan.positions", R"({"format": "voxvis-positions/1", "t": 1, "moves": []})");
   fs::create_directory(scenes / "dir.json");
+  write(scenes / "dir.json" / "inside", "x");
+  fs::create_directory(scenes / ".tmp-dir");  // named like a temporary, but not one
+  ASSERT_EQ(::mkfifo((scenes / "pipe.json").c_str(), 0600), 0);  // must not block the load
   const auto loaded = store.load_all(warn_);
   ASSERT_EQ(loaded.size(), 1u);
   EXPECT_EQ(loaded[0].id, "ok");
+  EXPECT_EQ(scene_dir_listing(), std::vector<std::string>{"ok.json"});
+  const std::vector<std::string> stray = {".tmp-dir", "bad id.json", "dir.json",        long_name,
+                                          "notes.txt", "orphan.positions", "pipe.json"};
+  std::vector<std::string> sorted = stray;
+  std::sort(sorted.begin(), sorted.end());
+  EXPECT_EQ(quarantine_listing(), sorted);
+  EXPECT_EQ(warnings_.size(), stray.size());
+  for (const std::string& name : stray) {
+    EXPECT_NE(warning_about(scenes / name).find("moved to " + (fs::path(dir_) / "quarantine" / name).string()),
+              std::string::npos);
+  }
+  EXPECT_NE(warning_about(scenes / "notes.txt").find("unexpected name"), std::string::npos);
+  EXPECT_NE(warning_about(scenes / "dir.json").find("a directory"), std::string::npos);
+  EXPECT_NE(warning_about(scenes / "orphan.positions").find("positions of no scene"), std::string::npos);
+  EXPECT_EQ(read(fs::path(dir_) / "quarantine" / "dir.json" / "inside"), "x");
 
   for (const std::string id : {"", "../escape", ".hidden", "a/b"}) {
     EXPECT_FALSE(store.save_scene(id, "{}").ok) << id;
@@ -209,6 +282,129 @@ TEST_F(StoreTest, InvalidIdsAreSkippedAndRefused) {
     EXPECT_FALSE(store.remove_scene(id).ok) << id;
   }
   EXPECT_FALSE(fs::exists(fs::path(dir_) / "escape.json"));
+}
+
+TEST_F(StoreTest, SymlinksAreQuarantinedNeverFollowed) {
+  SceneStore store;
+  ASSERT_TRUE(store.open(dir_).ok);
+  const fs::path scenes = fs::path(dir_) / "scenes";
+  // Outside the data directory: a file that would load as a scene and as
+  // positions, and a directory.
+  write(root_ / "secret.json", "{\"secret\": true}");
+  write(root_ / "secret.positions", R"({"format": "voxvis-positions/1", "t": 7, "moves": []})");
+  fs::create_directory(root_ / "outside");
+  write(root_ / "outside" / "x.json", "{}");
+  ASSERT_TRUE(store.save_scene("good", "{}").ok);
+  fs::create_symlink(root_ / "secret.json", scenes / "link.json");
+  fs::create_symlink(root_ / "secret.positions", scenes / "good.positions");
+  fs::create_directory_symlink(root_ / "outside", scenes / "linkdir.json");
+  fs::create_symlink(root_ / "secret.json", scenes / ".tmp-link");
+  fs::create_symlink(root_ / "nowhere", scenes / "dangling.json");
+
+  SceneStore reopened;
+  ASSERT_TRUE(reopened.open(dir_).ok);
+  const auto loaded = reopened.load_all(warn_);
+  ASSERT_EQ(loaded.size(), 1u);
+  EXPECT_EQ(loaded[0].id, "good");
+  EXPECT_EQ(loaded[0].json, "{}");
+  EXPECT_FALSE(loaded[0].t.has_value()) << "positions read through a symlink";
+  EXPECT_EQ(scene_dir_listing(), std::vector<std::string>{"good.json"});
+  const std::vector<std::string> links = {".tmp-link", "dangling.json", "good.positions", "link.json",
+                                          "linkdir.json"};
+  EXPECT_EQ(quarantine_listing(), links);
+  for (const std::string& name : links) {
+    EXPECT_TRUE(fs::is_symlink(fs::path(dir_) / "quarantine" / name)) << "the link itself moves: " << name;
+    EXPECT_NE(warning_about(scenes / name).find("symbolic link"), std::string::npos);
+  }
+  // The targets are untouched.
+  EXPECT_EQ(read(root_ / "secret.json"), "{\"secret\": true}");
+  EXPECT_TRUE(fs::exists(root_ / "secret.positions"));
+  EXPECT_EQ(listing(root_ / "outside"), std::vector<std::string>{"x.json"});
+}
+
+TEST_F(StoreTest, SymlinkedScenesDirectoryIsQuarantined) {
+  const fs::path elsewhere = root_ / "elsewhere";
+  fs::create_directories(elsewhere);
+  write(elsewhere / "x.json", "{}");
+  write(elsewhere / ".tmp-x.json.1.0", "not ours to remove");
+  fs::create_directory(dir_);
+  fs::create_directory_symlink(elsewhere, fs::path(dir_) / "scenes");
+
+  SceneStore store;
+  const Status s = store.open(dir_);
+  ASSERT_TRUE(s.ok) << s.str();
+  EXPECT_FALSE(fs::is_symlink(fs::path(dir_) / "scenes"));
+  EXPECT_TRUE(fs::is_directory(fs::path(dir_) / "scenes"));
+  EXPECT_TRUE(fs::is_symlink(fs::path(dir_) / "quarantine" / "scenes"));
+  EXPECT_EQ(listing(elsewhere), (std::vector<std::string>{".tmp-x.json.1.0", "x.json"}));
+  EXPECT_TRUE(store.load_all(warn_).empty());
+  ASSERT_EQ(warnings_.size(), 1u);
+  EXPECT_NE(warning_about(fs::path(dir_) / "scenes").find("symbolic link"), std::string::npos);
+  ASSERT_TRUE(store.save_scene("y", "{}").ok);
+  EXPECT_EQ(listing(elsewhere), (std::vector<std::string>{".tmp-x.json.1.0", "x.json"}));
+}
+
+TEST_F(StoreTest, DataDirectoryMayBeASymlink) {
+  fs::create_directory(root_ / "real");
+  const std::string link = (root_ / "link").string();
+  fs::create_directory_symlink(root_ / "real", link);
+  SceneStore store;
+  ASSERT_TRUE(store.open(link).ok);
+  ASSERT_TRUE(store.save_scene("a", "{}").ok);
+  write(root_ / "real" / "scenes" / "stray", "");
+  SceneStore reopened;
+  ASSERT_TRUE(reopened.open(link).ok);
+  EXPECT_EQ(reopened.load_all(warn_).size(), 1u);
+  EXPECT_EQ(listing(root_ / "real" / "quarantine"), std::vector<std::string>{"stray"});
+}
+
+TEST_F(StoreTest, QuarantineNamesNeverCollide) {
+  SceneStore store;
+  ASSERT_TRUE(store.open(dir_).ok);
+  const fs::path scenes = fs::path(dir_) / "scenes";
+  const fs::path quarantine = fs::path(dir_) / "quarantine";
+  for (const std::string text : {"first", "second", "third"}) {
+    write(scenes / "notes.txt", text);
+    EXPECT_TRUE(store.load_all(warn_).empty());
+  }
+  EXPECT_EQ(quarantine_listing(), (std::vector<std::string>{"notes.txt", "notes.txt.1", "notes.txt.2"}));
+  EXPECT_EQ(read(quarantine / "notes.txt"), "first");
+  EXPECT_EQ(read(quarantine / "notes.txt.2"), "third");
+  ASSERT_EQ(warnings_.size(), 3u);
+  EXPECT_NE(warnings_[2].find("moved to " + (quarantine / "notes.txt.2").string()), std::string::npos);
+
+  // A scene quarantined twice (refused by the engine, say): both files move.
+  for (const std::string json : {"{1}", "{2}"}) {
+    ASSERT_TRUE(store.save_scene("s", json).ok);
+    ASSERT_TRUE(store.save_positions("s", 1, {}).ok);
+    const Status s = store.quarantine("s");
+    ASSERT_TRUE(s.ok) << s.str();
+  }
+  ASSERT_TRUE(store.save_scene("lone", "{}").ok);  // without positions
+  ASSERT_TRUE(store.quarantine("lone").ok);
+  EXPECT_TRUE(scene_dir_listing().empty());
+  EXPECT_EQ(quarantine_listing(),
+            (std::vector<std::string>{"lone.json", "notes.txt", "notes.txt.1", "notes.txt.2", "s.json",
+                                      "s.json.1", "s.positions", "s.positions.1"}));
+  EXPECT_EQ(read(quarantine / "s.json.1"), "{2}");
+  EXPECT_TRUE(store.quarantine("never-existed").ok);
+  EXPECT_FALSE(store.quarantine("../escape").ok);
+}
+
+TEST_F(StoreTest, QuarantineThroughASymlinkIsRefused) {
+  SceneStore store;
+  ASSERT_TRUE(store.open(dir_).ok);
+  fs::create_directory(root_ / "outside");
+  fs::create_directory_symlink(root_ / "outside", fs::path(dir_) / "quarantine");
+  write(fs::path(dir_) / "scenes" / "notes.txt", "x");
+  ASSERT_TRUE(store.save_scene("s", "{}").ok);
+  EXPECT_EQ(store.load_all(warn_).size(), 1u);
+  EXPECT_NE(warning_about(fs::path(dir_) / "scenes" / "notes.txt").find("left in place"), std::string::npos);
+  const Status s = store.quarantine("s");
+  EXPECT_FALSE(s.ok);
+  EXPECT_EQ(s.field, (fs::path(dir_) / "quarantine").string());
+  EXPECT_TRUE(listing(root_ / "outside").empty());
+  EXPECT_EQ(scene_dir_listing(), (std::vector<std::string>{"notes.txt", "s.json"}));
 }
 
 TEST_F(StoreTest, NonFinitePositionsAreRefused) {
@@ -219,6 +415,8 @@ TEST_F(StoreTest, NonFinitePositionsAreRefused) {
   EXPECT_FALSE(s.ok);
   EXPECT_EQ(s.field, "positions[1].center");
   EXPECT_FALSE(store.save_positions("a", std::nan(""), {}).ok);
+  EXPECT_FALSE(store.save_positions("a", 2e10, {}).ok);
+  EXPECT_FALSE(store.save_positions("a", 0, {{1, {0, 0, 1e13}}}).ok);
   EXPECT_FALSE(fs::exists(fs::path(dir_) / "scenes" / "a.positions"));
 }
 
