@@ -5,13 +5,14 @@
 #include <unordered_set>
 
 namespace voxvis::server {
-namespace {
 
 std::string num(double v) {
   char buf[64];
   std::snprintf(buf, sizeof buf, "%.17g", v);
   return buf;
 }
+
+namespace {
 
 Status vec_check(const v1::Vec3& v, const std::string& field, Vec3* out) {
   *out = Vec3(v.x(), v.y(), v.z());
@@ -82,6 +83,9 @@ Status desc_from_proto(const v1::SceneDescription& in, SceneDesc* out) {
     }
     const double speed = o.max_speed();
     if (d.dynamic) {
+      if (!o.has_max_speed())
+        return Status::Error(f + ".max_speed",
+                             "dynamic objects need max_speed (world units per second)");
       if (!std::isfinite(speed) || !(speed >= 0.0))
         return Status::Error(f + ".max_speed", "must be >= 0, got " + num(speed));
       if (speed > kMaxCoordinate) return Status::Error(f + ".max_speed", "must be at most " + num(kMaxCoordinate));

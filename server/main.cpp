@@ -66,6 +66,14 @@ int run(int argc, char** argv) {
   app.add_option("--save-period", config.save_period_s,
                  "Seconds between saves of dynamic objects' positions")
       ->capture_default_str();
+  app.add_option("--max-view-lead", config.max_view_lead_s,
+                 "Seconds a viewer's frame may run beyond the time the simulation set; a later "
+                 "frame time is taken as that limit (viewers do not own a scene's clock)")
+      ->capture_default_str();
+  app.add_option("--max-time-step", config.max_time_step_s,
+                 "Seconds one simulation batch may advance a scene's clock (the first batch on "
+                 "a scene may set it anywhere within ±1e10 s)")
+      ->capture_default_str();
   app.add_option("--workers", config.workers, "Worker threads for frames and moves (0: one per core)")
       ->capture_default_str();
   app.add_option("--max-message-mib", max_message_mib, "Largest message accepted or sent, MiB")

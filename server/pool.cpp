@@ -19,34 +19,53 @@ WorkerPool::~WorkerPool() {
   for (std::thread& t : workers_) t.join();
 }
 
-void WorkerPool::submit(Job job) {
+void WorkerPool::submit(const std::string& client, Job job) {
   {
     std::lock_guard<std::mutex> lock(mu_);
-    queue_.push_back(std::move(job));
+    std::deque<Job>& q = queues_[client];
+    if (q.empty()) turns_.push_back(client);
+    q.push_back(std::move(job));
+    ++queued_;
   }
   cv_.notify_one();
 }
 
+std::size_t WorkerPool::queued() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return queued_;
+}
+
 void WorkerPool::drain() {
   std::unique_lock<std::mutex> lock(mu_);
-  idle_cv_.wait(lock, [this] { return queue_.empty() && running_ == 0; });
+  idle_cv_.wait(lock, [this] { return queued_ == 0 && running_ == 0; });
 }
 
 void WorkerPool::run(unsigned /*index*/) {
   Scratch scratch;
   std::unique_lock<std::mutex> lock(mu_);
   for (;;) {
-    cv_.wait(lock, [this] { return stop_ || !queue_.empty(); });
-    if (queue_.empty()) return;  // stop_ and nothing left to run.
-    Job job = std::move(queue_.front());
-    queue_.pop_front();
+    cv_.wait(lock, [this] { return stop_ || queued_ != 0; });
+    if (queued_ == 0) return;  // stop_ and nothing left to run.
+    // The client whose turn it is gives one job and goes to the back of the
+    // line if it has more.
+    std::string client = std::move(turns_.front());
+    turns_.pop_front();
+    auto it = queues_.find(client);
+    Job job = std::move(it->second.front());
+    it->second.pop_front();
+    if (it->second.empty()) {
+      queues_.erase(it);
+    } else {
+      turns_.push_back(std::move(client));
+    }
+    --queued_;
     ++running_;
     lock.unlock();
     job(scratch);
     job = nullptr;  // Release what the job holds before counting it done.
     lock.lock();
     --running_;
-    if (queue_.empty() && running_ == 0) idle_cv_.notify_all();
+    if (queued_ == 0 && running_ == 0) idle_cv_.notify_all();
   }
 }
 
@@ -57,7 +76,7 @@ void Strand::post(Job job) {
     if (scheduled_) return;
     scheduled_ = true;
   }
-  pool_.submit([self = shared_from_this()](Scratch& s) { self->run_some(s); });
+  pool_.submit(client_, [self = shared_from_this()](Scratch& s) { self->run_some(s); });
 }
 
 void Strand::run_some(Scratch& scratch) {
@@ -79,7 +98,7 @@ void Strand::run_some(Scratch& scratch) {
     scheduled_ = false;
     return;
   }
-  pool_.submit([self = shared_from_this()](Scratch& s) { self->run_some(s); });
+  pool_.submit(client_, [self = shared_from_this()](Scratch& s) { self->run_some(s); });
 }
 
 }  // namespace voxvis::server

@@ -1,12 +1,19 @@
 // pool.h — the worker pool that runs frames and moves, and strands that
 // serialize a sequence of jobs on it.
 //
+// Admission is fair between clients: every job is submitted under a client
+// key (the server uses the connection's peer address), each key has its own
+// FIFO queue, and workers take one job from each key with work in turn
+// (round robin). A client that queues a thousand frames therefore delays
+// another client's frame by about one job per busy client, not by its whole
+// backlog.
+//
 // Workers never block on each other's work except on a scene's lock. Jobs of
 // one Strand run one at a time, in the order posted, on any worker; the
-// server uses one per scene for its move batches. A strand with work
-// occupies one worker at a time and hands it back after a few jobs, so one
-// busy scene cannot starve the others. Each worker owns one Scratch
-// (per-frame working memory), reused across scenes.
+// server uses one per scene for its move batches, keyed by the scene. A
+// strand with work occupies one worker at a time and hands it back after a
+// few jobs, so one busy scene cannot starve the others. Each worker owns one
+// Scratch (per-frame working memory), reused across scenes.
 #pragma once
 
 #include <condition_variable>
@@ -15,7 +22,9 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <string>
 #include <thread>
+#include <unordered_map>
 #include <vector>
 
 #include "voxvis/scene.h"
@@ -33,18 +42,24 @@ class WorkerPool {
   WorkerPool(const WorkerPool&) = delete;
   WorkerPool& operator=(const WorkerPool&) = delete;
 
-  void submit(Job job);
+  /// Queues `job` behind the earlier jobs of the same `client`; clients take
+  /// turns (see above).
+  void submit(const std::string& client, Job job);
   /// Blocks until no job is queued or running (jobs may submit more jobs).
   void drain();
   unsigned threads() const { return static_cast<unsigned>(workers_.size()); }
+  /// Jobs queued and not yet started, all clients together.
+  std::size_t queued() const;
 
  private:
   void run(unsigned index);
 
-  std::mutex mu_;
+  mutable std::mutex mu_;
   std::condition_variable cv_;       // Guarded by mu_: new job or stop.
-  std::condition_variable idle_cv_;  // Guarded by mu_: queue empty and no job running.
-  std::deque<Job> queue_;            // Guarded by mu_.
+  std::condition_variable idle_cv_;  // Guarded by mu_: queues empty and no job running.
+  std::unordered_map<std::string, std::deque<Job>> queues_;  // Guarded by mu_: non-empty only.
+  std::deque<std::string> turns_;    // Guarded by mu_: each key of queues_ once, next first.
+  std::size_t queued_ = 0;           // Guarded by mu_.
   unsigned running_ = 0;             // Guarded by mu_.
   bool stop_ = false;                // Guarded by mu_.
   std::vector<std::thread> workers_;
@@ -54,7 +69,8 @@ class WorkerPool {
 /// shared_ptr and keep it alive from the jobs (Strand::post does).
 class Strand : public std::enable_shared_from_this<Strand> {
  public:
-  explicit Strand(WorkerPool& pool) : pool_(pool) {}
+  /// `client`: the key the strand's turns are submitted under.
+  Strand(WorkerPool& pool, std::string client) : pool_(pool), client_(std::move(client)) {}
   void post(Job job);
 
  private:
@@ -64,6 +80,7 @@ class Strand : public std::enable_shared_from_this<Strand> {
   static constexpr int kBatch = 4;
 
   WorkerPool& pool_;
+  const std::string client_;
   std::mutex mu_;
   std::deque<Job> queue_;  // Guarded by mu_.
   bool scheduled_ = false; // Guarded by mu_: a run_some is submitted or running.

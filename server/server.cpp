@@ -53,6 +53,10 @@ class ServerImpl final : public Server {
     log_ = std::move(log);
     if (config_.data_dir.empty()) return fail(error, "--data-dir is required");
     if (!(config_.save_period_s > 0.0)) return fail(error, "--save-period must be > 0 seconds");
+    if (!(config_.max_view_lead_s >= 0.0 && config_.max_view_lead_s <= kMaxSceneTime))
+      return fail(error, "--max-view-lead must be within [0, 1e10] seconds");
+    if (!(config_.max_time_step_s > 0.0 && config_.max_time_step_s <= 2 * kMaxSceneTime))
+      return fail(error, "--max-time-step must be within (0, 2e10] seconds");
     if (config_.tls_cert.empty() != config_.tls_key.empty())
       return fail(error, "--tls-cert and --tls-key go together");
     unsigned workers = config_.workers ? config_.workers : std::thread::hardware_concurrency();
@@ -79,14 +83,21 @@ class ServerImpl final : public Server {
     sc.scene_options = config_.scene_options;
     sc.memory_budget_bytes = budget;
     sc.workers = workers;
+    sc.max_view_lead_s = config_.max_view_lead_s;
+    sc.max_time_step_s = config_.max_time_step_s;
     service_ = std::make_unique<Service>(sc, *pool_, store_, tokens_, *metrics_, log_);
 
     // Scenes acknowledged in earlier runs, at their last saved positions.
     for (const StoredScene& st : store_.load_all(log_)) {
       const std::vector<Move>* pos = st.t ? &st.positions : nullptr;
-      if (Status s = service_->load_scene(st.id, st.json, st.json_path, pos, st.t, false); !s)
-        return fail(error, "cannot load stored scene '" + st.id + "': " + s.str() +
-                               " (move the file away to start without it)");
+      if (Status s = service_->load_scene(st.id, st.json, st.json_path, pos, st.t, false); !s) {
+        // One bad scene must not keep the others from being served.
+        if (Status q = store_.quarantine(st.id); !q)
+          log_("scene '" + st.id + "' not loaded: " + s.str() + "; cannot quarantine it: " + q.str());
+        else
+          log_("quarantined scene '" + st.id + "': " + s.str());
+        continue;
+      }
       log_("loaded scene '" + st.id + "' from the data directory");
     }
     for (const std::string& arg : config_.scene_files) {
@@ -172,6 +183,10 @@ class ServerImpl final : public Server {
       server_->Shutdown(grace);
     }
     if (pool_) pool_->drain();
+    if (service_)
+      log_(std::to_string(service_->dropped()) +
+           " queued requests dropped without running since start (their clients had gone, "
+           "or the server was stopping)");
     {
       std::lock_guard<std::mutex> lock(saver_mu_);
       saver_stop_ = true;

@@ -26,6 +26,8 @@ struct ServerConfig {
   unsigned workers = 0;                     ///< 0: one per core.
   int max_message_bytes = 64 << 20;         ///< Largest message accepted, bytes.
   double shutdown_grace_s = 5.0;            ///< How long in-flight calls may take at shutdown.
+  double max_view_lead_s = 1.0;             ///< How far viewers may run beyond the simulation's clock.
+  double max_time_step_s = 3600.0;          ///< How far one simulation batch may advance the clock.
   SceneOptions scene_options;
 };
 

@@ -38,6 +38,26 @@ void store_max(std::atomic<double>& a, double v) {
   }
 }
 
+/// A request's scene id, checked before any message could echo it.
+grpc::Status check_scene_id(const std::string& id, const char* field = "scene_id") {
+  if (valid_scene_id(id)) return grpc::Status::OK;
+  return invalid(Status::Error(field, "must be 1-64 characters from [A-Za-z0-9._-], not starting "
+                                      "with '.' (got " + std::to_string(id.size()) + " bytes)"));
+}
+
+/// NOT_FOUND for a (valid, hence short) scene id.
+grpc::Status no_scene(const std::string& id) {
+  return grpc::Status(grpc::StatusCode::NOT_FOUND, "scene_id: no scene '" + id + "'");
+}
+
+grpc::Status deleted(const SceneEntry& e) {
+  return grpc::Status(grpc::StatusCode::NOT_FOUND, "scene '" + e.id + "' was deleted");
+}
+
+grpc::Status shutting_down_status() {
+  return grpc::Status(grpc::StatusCode::UNAVAILABLE, "server is shutting down");
+}
+
 void add_ids(const std::vector<ObjectId>& ids, google::protobuf::RepeatedField<std::uint32_t>* out) {
   out->Reserve(static_cast<int>(ids.size()));
   for (ObjectId id : ids) out->AddAlreadyReserved(id);
@@ -70,6 +90,18 @@ void SceneEntry::refresh_wake() {
     std::lock_guard<std::mutex> sink_lock(sink->mu);
     if (sink->reactor) deliver_wake(sink->reactor, wake);
   }
+}
+
+void SceneEntry::after_frame(const FrameResult& result) {
+  frames_served.fetch_add(1, std::memory_order_relaxed);
+  tbvs_active.store(result.stats.tbvs_active, std::memory_order_relaxed);
+  if (metrics) metrics->tbvs_active(result.stats.tbvs_active);
+  store_max(time, result.t);
+  refresh_wake();
+}
+
+double SceneEntry::view_time(double t, double lead) const {
+  return std::fmin(t, sim_time.load(std::memory_order_relaxed) + lead);
 }
 
 void SceneEntry::subscribe(const std::shared_ptr<WakeSink>& sink) {
@@ -134,6 +166,7 @@ class StreamReactor : public grpc::ServerBidiReactor<Req, Resp>, public Stream {
   /// derived constructor without holding mu_ (the service's stream lock comes
   /// first in the lock order).
   grpc::Status admit(grpc::CallbackServerContext* ctx, Role role) {
+    client_ = ctx->peer();
     const grpc::Status auth = svc_->tokens().authorize(ctx, role);
     registered_ = svc_->add_stream(this);
     if (!auth.ok()) return auth;
@@ -170,6 +203,7 @@ class StreamReactor : public grpc::ServerBidiReactor<Req, Resp>, public Stream {
 
   Service* svc_;
   const char* method_;
+  std::string client_;       // The connection's peer: the pool's admission key. Set in admit.
   bool registered_ = false;  // Written before any reaction can run.
   std::mutex mu_;
   std::shared_ptr<SceneEntry> entry_;  // Guarded by mu_; set by the first message.
@@ -243,12 +277,12 @@ class ViewReactor final
     if (!entry_) {
       if (r.scene_id().empty())
         return invalid(Status::Error("scene_id", "the first message of a stream must name the scene"));
+      if (grpc::Status s = check_scene_id(r.scene_id()); !s.ok()) return s;
       if (r.encoding() != v1::PVS_FULL && r.encoding() != v1::PVS_DELTA)
         return invalid(Status::Error("encoding", "unknown value " + std::to_string(r.encoding())));
       // entry_ set means counted as a viewer (released in on_release).
       entry_ = svc_->find(r.scene_id());
-      if (!entry_)
-        return grpc::Status(grpc::StatusCode::NOT_FOUND, "scene_id: no scene '" + r.scene_id() + "'");
+      if (!entry_) return no_scene(r.scene_id());
       encoding_ = r.encoding();
       entry_->viewers.fetch_add(1, std::memory_order_relaxed);
       if (entry_->metrics) entry_->metrics->viewers(+1);
@@ -260,7 +294,7 @@ class ViewReactor final
       return invalid(Status::Error("frame", "must increase along a stream: " +
                                                 std::to_string(r.frame()) + " after " +
                                                 std::to_string(last_frame_)));
-    if (!std::isfinite(r.t())) return invalid(Status::Error("t", "must be finite"));
+    if (Status s = validate_time("t", r.t()); !s) return invalid(s);
     if (have_frame_ && r.t() < last_t_)
       return invalid(Status::Error("t", "must not decrease along a stream"));
     Pending p;
@@ -291,7 +325,7 @@ class ViewReactor final
       skipped_ = 0;
       // Frames of one scene run in parallel (the Scene synchronizes itself);
       // this stream's frames one at a time.
-      svc_->pool().submit([this, entry = entry_, p, skipped](Scratch& scratch) {
+      svc_->pool().submit(client_, [this, entry = entry_, p, skipped](Scratch& scratch) {
         compute(*entry, p, skipped, scratch);
       });
     }
@@ -303,8 +337,16 @@ class ViewReactor final
   void compute(SceneEntry& e, const Pending& p, std::uint32_t skipped, Scratch& scratch) {
     std::optional<Ready> ready;
     grpc::Status error;
-    if (e.deleted.load()) {
-      error = grpc::Status(grpc::StatusCode::NOT_FOUND, "scene '" + e.id + "' was deleted");
+    bool stopped;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      stopped = stopping_;
+    }
+    if (stopped) {
+      // Cancelled, shut down or deleted while queued: nobody waits for it.
+      svc_->count_dropped();
+    } else if (e.deleted.load()) {
+      error = deleted(e);
     } else {
       Scene& scene = *e.scene;
       if (!viewer_added_) {
@@ -315,17 +357,16 @@ class ViewReactor final
       ready->frame = p.frame;
       ready->received = p.received;
       ready->skipped = skipped;
-      // The scene's clock is shared: a time behind it is taken as it.
-      Status s = scene.frame(viewer_, p.camera, p.t, scratch, &ready->result, Scene::Clock::Latest);
+      // The scene's clock is shared: a time behind it is taken as it, one
+      // too far beyond the simulation's as its limit.
+      const double t = e.view_time(p.t, svc_->config().max_view_lead_s);
+      Status s = scene.frame(viewer_, p.camera, t, scratch, &ready->result, Scene::Clock::Latest);
       ready->t = ready->result.t;
       if (!s) {
         error = invalid(s);
         ready.reset();
       } else {
-        e.frames_served.fetch_add(1, std::memory_order_relaxed);
-        e.tbvs_active.store(ready->result.stats.tbvs_active, std::memory_order_relaxed);
-        store_max(e.time, ready->t);
-        e.refresh_wake();
+        e.after_frame(ready->result);
       }
     }
     bool del;
@@ -334,7 +375,7 @@ class ViewReactor final
       computing_ = false;
       if (ready) {
         ready_ = std::move(ready);
-      } else {
+      } else if (!error.ok()) {
         stop_locked(error);
       }
       advance_locked();
@@ -377,7 +418,7 @@ class ViewReactor final
     if (entry_->metrics) entry_->metrics->viewers(-1);
     if (viewer_added_) {
       // The viewer's claims on its last PVS go with it.
-      svc_->pool().submit([entry = entry_, v = viewer_](Scratch&) {
+      svc_->pool().submit(client_, [entry = entry_, v = viewer_](Scratch&) {
         if (!entry->deleted.load()) entry->scene->remove_viewer(v);
       });
     }
@@ -453,9 +494,9 @@ class SimReactor final
     if (!entry_) {
       if (r.scene_id().empty())
         return invalid(Status::Error("scene_id", "the first message of a stream must name the scene"));
+      if (grpc::Status s = check_scene_id(r.scene_id()); !s.ok()) return s;
       entry_ = svc_->find(r.scene_id());
-      if (!entry_)
-        return grpc::Status(grpc::StatusCode::NOT_FOUND, "scene_id: no scene '" + r.scene_id() + "'");
+      if (!entry_) return no_scene(r.scene_id());
       entry_->simulators.fetch_add(1, std::memory_order_relaxed);
       ++jobs_;
       entry_->strand->post([this, entry = entry_, sink = sink_](Scratch&) {
@@ -468,7 +509,7 @@ class SimReactor final
     }
     if (!r.has_batch()) return grpc::Status::OK;
     const v1::MoveBatch& b = r.batch();
-    if (!std::isfinite(b.t())) return invalid(Status::Error("batch.t", "must be finite"));
+    if (Status s = validate_time("batch.t", b.t()); !s) return invalid(s);
     if (have_t_ && b.t() < last_t_)
       return invalid(Status::Error("batch.t", "must not decrease along a stream"));
     std::vector<Move> moves;
@@ -486,9 +527,31 @@ class SimReactor final
 
   // Job of the scene's strand.
   void apply(SceneEntry& e, std::uint64_t seq, double t, const std::vector<Move>& moves) {
+    bool stopped;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      stopped = stopping_;
+    }
+    if (stopped) {
+      // Nobody will read the acknowledgement: the batch is not applied.
+      svc_->count_dropped();
+      job_done(std::nullopt, grpc::Status(grpc::StatusCode::CANCELLED, "stream stopped"));
+      return;
+    }
     if (e.deleted.load()) {
+      job_done(std::nullopt, deleted(e));
+      return;
+    }
+    // One batch may advance the clock by a bounded step; the first one on a
+    // scene adopts the backend's epoch.
+    const double step_limit = svc_->config().max_time_step_s;
+    const double from = e.sim_time.load(std::memory_order_relaxed);
+    if (e.sim_clock_set && t - from > step_limit) {
       job_done(std::nullopt,
-               grpc::Status(grpc::StatusCode::NOT_FOUND, "scene '" + e.id + "' was deleted"));
+               invalid(Status::Error("batch.t", num(t) + " is " + num(t - from) +
+                                                    " s beyond the scene's clock (" + num(from) +
+                                                    "); one batch may advance it by at most " +
+                                                    num(step_limit) + " s")));
       return;
     }
     Scene& scene = *e.scene;
@@ -501,6 +564,8 @@ class SimReactor final
     }
     e.moves_applied.fetch_add(report.applied, std::memory_order_relaxed);
     store_max(e.time, at);
+    store_max(e.sim_time, at);
+    e.sim_clock_set = true;
     if (report.applied) e.positions_dirty.store(true, std::memory_order_relaxed);
     if (e.metrics) e.metrics->moves(report.applied);
     e.refresh_wake();
@@ -620,8 +685,8 @@ void Service::remove_stream(Stream* s) {
 void Service::begin_shutdown() {
   std::lock_guard<std::mutex> lock(streams_mu_);
   shutting_down_ = true;
-  for (Stream* s : streams_)
-    s->stop_if(nullptr, grpc::Status(grpc::StatusCode::UNAVAILABLE, "server is shutting down"));
+  stopping_.store(true);
+  for (Stream* s : streams_) s->stop_if(nullptr, shutting_down_status());
 }
 
 void Service::count_error(const char* method, const grpc::Status& status) {
@@ -635,8 +700,12 @@ void Service::finish_unary(grpc::ServerUnaryReactor* r, const char* method, cons
 
 std::shared_ptr<SceneEntry> Service::find_or_finish(grpc::ServerUnaryReactor* r, const char* method,
                                                     const std::string& id) {
+  if (grpc::Status s = check_scene_id(id); !s.ok()) {
+    finish_unary(r, method, s);
+    return nullptr;
+  }
   std::shared_ptr<SceneEntry> e = find(id);
-  if (!e) finish_unary(r, method, grpc::Status(grpc::StatusCode::NOT_FOUND, "scene_id: no scene '" + id + "'"));
+  if (!e) finish_unary(r, method, no_scene(id));
   return e;
 }
 
@@ -671,6 +740,9 @@ grpc::Status Service::build_scene(const std::string& id, SceneDesc desc, const s
   const std::uint64_t bytes = estimate_scene_bytes(desc, res, config_.workers);
   {
     std::lock_guard<std::mutex> lock(scenes_mu_);
+    if (deleting_.count(id))
+      return grpc::Status(grpc::StatusCode::ABORTED,
+                          "scene_id: '" + id + "' is being deleted; try again");
     if (scenes_.count(id) || reserved_.count(id))
       return grpc::Status(grpc::StatusCode::ALREADY_EXISTS, "scene_id: '" + id + "' exists");
     if (bytes_in_use_ + bytes > config_.memory_budget_bytes)
@@ -702,7 +774,7 @@ grpc::Status Service::build_scene(const std::string& id, SceneDesc desc, const s
     }
   }
   entry->id = id;
-  entry->strand = std::make_shared<Strand>(pool_);
+  entry->strand = std::make_shared<Strand>(pool_, "scene:" + id);
   entry->memory_bytes = bytes;
   entry->grid = entry->scene->grid();
   entry->objects = static_cast<std::uint32_t>(entry->scene->object_count());
@@ -728,6 +800,10 @@ Status Service::load_scene(const std::string& id, const std::string& json,
   SceneDesc desc;
   FormatError err;
   if (!parse_scene(json, source, &desc, &err)) return Status::Error("", err.str());
+  // Checked before the scene is registered, so that applying it cannot fail.
+  if (t) {
+    if (Status s = validate_time("t", *t); !s) return Status::Error("", source + ": saved time: " + s.str());
+  }
   if (positions) {
     std::map<ObjectId, Vec3> at;
     for (const Move& m : *positions) at[m.id] = m.center;
@@ -739,10 +815,12 @@ Status Service::load_scene(const std::string& id, const std::string& json,
   grpc::Status g = build_scene(id, std::move(desc), json, true, persist);
   if (!g.ok()) return Status::Error("", source + ": " + g.error_message());
   if (t) {
+    // Nothing serves the scene yet: the strand's fields are ours here.
     std::shared_ptr<SceneEntry> e = find(id);
-    Status s = e->scene->apply_moves(*t, {});
-    if (!s) return Status::Error("", source + ": saved time: " + s.str());
+    e->scene->apply_moves(*t, {});
     e->time.store(*t);
+    e->sim_time.store(*t);
+    e->sim_clock_set = true;
   }
   return Status::Ok();
 }
@@ -777,14 +855,17 @@ grpc::ServerUnaryReactor* Service::CreateScene(grpc::CallbackServerContext* ctx,
     finish_unary(r, "CreateScene", a);
     return r;
   }
-  if (!valid_scene_id(req->scene_id())) {
-    finish_unary(r, "CreateScene",
-                 invalid(Status::Error("scene_id", "must be 1-64 characters from [A-Za-z0-9._-], "
-                                                   "not starting with '.'")));
+  if (grpc::Status s = check_scene_id(req->scene_id()); !s.ok()) {
+    finish_unary(r, "CreateScene", s);
     return r;
   }
   // Parsing and building a grid take long: off the callback thread.
-  pool_.submit([this, r, req, resp](Scratch&) {
+  pool_.submit(ctx->peer(), [this, r, req, resp](Scratch&) {
+    if (shutting_down()) {
+      count_dropped();
+      finish_unary(r, "CreateScene", shutting_down_status());
+      return;
+    }
     SceneDesc desc;
     std::string json;
     bool from_json = false;
@@ -824,6 +905,13 @@ grpc::ServerUnaryReactor* Service::DeleteScene(grpc::CallbackServerContext* ctx,
     finish_unary(r, "DeleteScene", a);
     return r;
   }
+  if (grpc::Status s = check_scene_id(req->scene_id()); !s.ok()) {
+    finish_unary(r, "DeleteScene", s);
+    return r;
+  }
+  // The id stays taken (deleting_) until the scene's files and metrics are
+  // gone, so that a CreateScene of the same id cannot interleave with the
+  // removal and lose its files or its metric series.
   std::shared_ptr<SceneEntry> e;
   std::size_t count;
   {
@@ -833,12 +921,12 @@ grpc::ServerUnaryReactor* Service::DeleteScene(grpc::CallbackServerContext* ctx,
       e = it->second;
       scenes_.erase(it);
       bytes_in_use_ -= e->memory_bytes;
+      deleting_.insert(e->id);
     }
     count = scenes_.size();
   }
   if (!e) {
-    finish_unary(r, "DeleteScene",
-                 grpc::Status(grpc::StatusCode::NOT_FOUND, "scene_id: no scene '" + req->scene_id() + "'"));
+    finish_unary(r, "DeleteScene", no_scene(req->scene_id()));
     return r;
   }
   Status removed;
@@ -850,10 +938,14 @@ grpc::ServerUnaryReactor* Service::DeleteScene(grpc::CallbackServerContext* ctx,
   {
     std::lock_guard<std::mutex> lock(streams_mu_);
     for (Stream* s : streams_)
-      s->stop_if(e.get(), grpc::Status(grpc::StatusCode::NOT_FOUND, "scene '" + e->id + "' was deleted"));
+      s->stop_if(e.get(), deleted(*e));
   }
   metrics_.remove_scene(e->id);
   metrics_.scenes(count);
+  {
+    std::lock_guard<std::mutex> lock(scenes_mu_);
+    deleting_.erase(e->id);
+  }
   if (!removed) {
     log_("scene '" + e->id + "' deleted but its files remain: " + removed.str());
     finish_unary(r, "DeleteScene",
@@ -912,32 +1004,41 @@ grpc::ServerUnaryReactor* Service::GetPvs(grpc::CallbackServerContext* ctx,
     finish_unary(r, "GetPvs", invalid(s));
     return r;
   }
-  if (!std::isfinite(req->t())) {
-    finish_unary(r, "GetPvs", invalid(Status::Error("t", "must be finite")));
+  if (Status s = validate_time("t", req->t()); !s) {
+    finish_unary(r, "GetPvs", invalid(s));
     return r;
   }
   const Clock::time_point received = Clock::now();
-  pool_.submit([this, r, e, camera, t = req->t(), resp, received](Scratch& scratch) {
+  pool_.submit(ctx->peer(), [this, ctx, r, e, camera, t = req->t(), resp, received](Scratch& scratch) {
+    // Work nobody waits for any more is answered without running.
+    if (ctx->IsCancelled()) {
+      count_dropped();
+      r->Finish(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled"));
+      return;
+    }
+    if (shutting_down()) {
+      count_dropped();
+      finish_unary(r, "GetPvs", shutting_down_status());
+      return;
+    }
     if (e->deleted.load()) {
-      finish_unary(r, "GetPvs", grpc::Status(grpc::StatusCode::NOT_FOUND, "scene '" + e->id + "' was deleted"));
+      finish_unary(r, "GetPvs", deleted(*e));
       return;
     }
     Scene& scene = *e->scene;
     const ViewerId v = scene.add_viewer();
     FrameResult result;
-    Status s = scene.frame(v, camera, t, scratch, &result, Scene::Clock::Latest);
-    const double at = result.t;
+    Status s = scene.frame(v, camera, e->view_time(t, config_.max_view_lead_s), scratch, &result,
+                           Scene::Clock::Latest);
     scene.remove_viewer(v);
     if (!s) {
       finish_unary(r, "GetPvs", invalid(s));
       return;
     }
-    e->frames_served.fetch_add(1, std::memory_order_relaxed);
-    store_max(e->time, at);
-    e->refresh_wake();
+    e->after_frame(result);
     add_ids(result.pvs, resp->mutable_pvs());
     stats_to_proto(result.stats, resp->mutable_stats());
-    resp->set_t(at);
+    resp->set_t(result.t);
     if (e->metrics)
       e->metrics->frame(result.stats, std::chrono::duration<double>(Clock::now() - received).count());
     finish_unary(r, "GetPvs", grpc::Status::OK);

@@ -18,6 +18,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string>
 #include <unordered_set>
 #include <vector>
@@ -72,12 +73,25 @@ struct SceneEntry {
   std::atomic<std::uint32_t> tbvs_active{0};
   std::atomic<std::uint32_t> wake_size{0};
   std::atomic<double> time{0.0};
+  /// The clock as the simulation set it: the latest batch time (or the saved
+  /// time at load). Viewers' frames may run at most ServiceConfig's
+  /// max_view_lead_s beyond it. Written by the scene's strand only.
+  std::atomic<double> sim_time{0.0};
+  /// Whether any simulation batch (or a saved time) has set the clock yet;
+  /// the first may set it anywhere in range. Touched by the strand only.
+  bool sim_clock_set = false;
 
   std::mutex wake_mu;
   std::uint64_t wake_epoch_seen = ~std::uint64_t{0};       // Guarded by wake_mu.
   std::shared_ptr<const WakeSnapshot> wake;                // Guarded by wake_mu.
   std::vector<std::shared_ptr<WakeSink>> sinks;            // Guarded by wake_mu.
 
+  /// Bookkeeping after a frame computed for any viewer: counters, metrics,
+  /// the scene's time and the wake list.
+  void after_frame(const FrameResult& result);
+  /// The time a viewer's frame at `t` runs at: `t`, but at most `lead`
+  /// seconds beyond the simulation's clock (viewers do not own the clock).
+  double view_time(double t, double lead) const;
   /// Recomputes the wake list when the engine says it may have changed and
   /// hands a new snapshot to every Simulate stream of the scene.
   void refresh_wake();
@@ -91,6 +105,10 @@ struct ServiceConfig {
   SceneOptions scene_options;
   std::uint64_t memory_budget_bytes = 0;  ///< Sum of scenes' estimated bytes allowed.
   unsigned workers = 1;
+  /// How far beyond the simulation's clock a viewer's frame may run, seconds.
+  double max_view_lead_s = 1.0;
+  /// How far one simulation batch may advance a scene's clock, seconds.
+  double max_time_step_s = 3600.0;
 };
 
 /// A stream the service can end from outside (shutdown, scene deletion).
@@ -149,6 +167,13 @@ class Service final : public v1::Visibility::CallbackService {
   const TokenTable& tokens() const { return tokens_; }
   Metrics& metrics() { return metrics_; }
   WorkerPool& pool() { return pool_; }
+  const ServiceConfig& config() const { return config_; }
+  /// True from begin_shutdown on: queued work is answered without running.
+  bool shutting_down() const { return stopping_.load(std::memory_order_relaxed); }
+  /// Counts a queued request answered without running: its client had gone
+  /// or the server was stopping.
+  void count_dropped() { dropped_.fetch_add(1, std::memory_order_relaxed); }
+  std::uint64_t dropped() const { return dropped_.load(std::memory_order_relaxed); }
   /// Registers a live stream; false when the server is shutting down.
   bool add_stream(Stream* s);
   void remove_stream(Stream* s);
@@ -176,6 +201,7 @@ class Service final : public v1::Visibility::CallbackService {
   mutable std::mutex scenes_mu_;
   std::map<std::string, std::shared_ptr<SceneEntry>> scenes_;  // Guarded by scenes_mu_.
   std::map<std::string, std::uint64_t> reserved_;  // Guarded by scenes_mu_: ids being created.
+  std::set<std::string> deleting_;                 // Guarded by scenes_mu_: ids being deleted.
   std::uint64_t bytes_in_use_ = 0;                 // Guarded by scenes_mu_ (scenes and reserved).
 
   std::mutex store_mu_;  // Serializes position saves with scene deletion.
@@ -183,6 +209,8 @@ class Service final : public v1::Visibility::CallbackService {
   std::mutex streams_mu_;
   std::unordered_set<Stream*> streams_;  // Guarded by streams_mu_.
   bool shutting_down_ = false;           // Guarded by streams_mu_.
+  std::atomic<bool> stopping_{false};    // shutting_down_, readable without the lock.
+  std::atomic<std::uint64_t> dropped_{0};
 };
 
 }  // namespace voxvis::server

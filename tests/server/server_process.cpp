@@ -1,7 +1,10 @@
 #include "server_process.h"
 
+#include <arpa/inet.h>
 #include <fcntl.h>
+#include <netinet/in.h>
 #include <signal.h>
+#include <sys/socket.h>
 #include <stdlib.h>
 #include <sys/prctl.h>
 #include <sys/wait.h>
@@ -544,6 +547,89 @@ long ServerProcess::rss_kib() const {
 }
 
 std::string ServerProcess::log() const { return slurp(dir_ + "/server.log"); }
+
+// ---------------------------------------------------------------------------
+// PvsFlood and http_get
+
+PvsFlood::PvsFlood(const Api& api, const std::string& scene_id, int count, double t,
+                   const Camera& camera, Seconds timeout) {
+  calls_.reserve(static_cast<std::size_t>(count));
+  for (int i = 0; i < count; ++i) {
+    auto call = std::make_unique<Call>();
+    api.prepare(&call->context, timeout);
+    call->request.set_scene_id(scene_id);
+    call->request.set_t(t);
+    to_proto(camera, call->request.mutable_camera());
+    calls_.push_back(std::move(call));
+  }
+  // Every call is built before the first is sent: the callbacks only touch
+  // the counters.
+  for (auto& call : calls_) {
+    api.stub().async()->GetPvs(&call->context, &call->request, &call->response,
+                               [this](grpc::Status status) {
+                                 std::lock_guard<std::mutex> lock(mu_);
+                                 ++done_;
+                                 ++codes_[status.error_code()];
+                                 cv_.notify_all();
+                               });
+  }
+}
+
+PvsFlood::~PvsFlood() {
+  if (!wait_all(Seconds(60))) {
+    cancel();
+    wait_all(Seconds(600));
+  }
+}
+
+int PvsFlood::done() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return done_;
+}
+
+int PvsFlood::with_code(grpc::StatusCode code) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  const auto it = codes_.find(code);
+  return it == codes_.end() ? 0 : it->second;
+}
+
+bool PvsFlood::wait_all(Seconds timeout) const {
+  std::unique_lock<std::mutex> lock(mu_);
+  return cv_.wait_for(lock, timeout, [this] { return done_ == static_cast<int>(calls_.size()); });
+}
+
+void PvsFlood::cancel() {
+  for (auto& call : calls_) call->context.TryCancel();
+}
+
+std::string http_get(int port, const std::string& path) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  if (fd < 0) return "socket failed";
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<std::uint16_t>(port));
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0) {
+    ::close(fd);
+    return "connect failed";
+  }
+  // HTTP/1.0: the server closes the connection after the answer, so reading
+  // to EOF gets all of it.
+  const std::string request = "GET " + path + " HTTP/1.0\r\nHost: 127.0.0.1\r\n\r\n";
+  if (::send(fd, request.data(), request.size(), 0) != static_cast<ssize_t>(request.size())) {
+    ::close(fd);
+    return "send failed";
+  }
+  std::string response;
+  char buffer[4096];
+  for (;;) {
+    const ssize_t n = ::recv(fd, buffer, sizeof buffer, 0);
+    if (n <= 0) break;
+    response.append(buffer, static_cast<std::size_t>(n));
+  }
+  ::close(fd);
+  return response;
+}
 
 // ---------------------------------------------------------------------------
 // Generic calls

@@ -21,6 +21,7 @@
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -217,6 +218,46 @@ class SimStream {
   std::vector<std::string> errors_;             // Guarded by mu_.
   bool ended_ = false;                          // Guarded by mu_.
 };
+
+/// `count` GetPvs calls sent at once on one channel without waiting for any
+/// (gRPC's callback client API), each with its own deadline `timeout`: the
+/// flood a careless or hostile client makes. Completions are counted by
+/// status code; the destructor waits for every call (cancelling what is left
+/// after a bound).
+class PvsFlood {
+ public:
+  PvsFlood(const Api& api, const std::string& scene_id, int count, double t, const Camera& camera,
+           Seconds timeout);
+  ~PvsFlood();
+  PvsFlood(const PvsFlood&) = delete;
+  PvsFlood& operator=(const PvsFlood&) = delete;
+
+  int count() const { return static_cast<int>(calls_.size()); }
+  /// Calls completed so far, whatever their status.
+  int done() const;
+  /// Calls completed with `code` so far.
+  int with_code(grpc::StatusCode code) const;
+  /// Waits until every call has completed; false when `timeout` passed first.
+  bool wait_all(Seconds timeout) const;
+  /// Cancels every call still open.
+  void cancel();
+
+ private:
+  struct Call {
+    grpc::ClientContext context;
+    v1::GetPvsRequest request;
+    v1::GetPvsResponse response;
+  };
+  std::vector<std::unique_ptr<Call>> calls_;
+  mutable std::mutex mu_;
+  mutable std::condition_variable cv_;
+  int done_ = 0;                          // Guarded by mu_.
+  std::map<grpc::StatusCode, int> codes_;  // Guarded by mu_.
+};
+
+/// GET http://127.0.0.1:port/path over HTTP/1.0: the whole answer, headers
+/// included, or a line saying what failed.
+std::string http_get(int port, const std::string& path);
 
 // ---------------------------------------------------------------------------
 // The server process

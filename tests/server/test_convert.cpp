@@ -67,6 +67,7 @@ TEST(Convert, SceneErrorsNameTheField) {
       {"description.objects[0].center", [](v1::SceneDescription* d) { d->mutable_objects(0)->mutable_sphere()->mutable_center()->set_y(s_nan); }},
       {"description.objects[0].center", [](v1::SceneDescription* d) { d->mutable_objects(0)->mutable_sphere()->mutable_center()->set_y(2e12); }},
       {"description.objects[0].max_speed", [](v1::SceneDescription* d) { d->mutable_objects(0)->set_max_speed(-1); }},
+      {"description.objects[0].max_speed", [](v1::SceneDescription* d) { d->mutable_objects(0)->clear_max_speed(); }},
       {"description.objects[1].max_speed", [](v1::SceneDescription* d) { d->mutable_objects(1)->set_max_speed(1); }},
       {"description.objects[1].max", [](v1::SceneDescription* d) { set(d->mutable_objects(1)->mutable_box()->mutable_max(), 0, 2, 1); }},
       {"description.objects[1].min", [](v1::SceneDescription* d) { d->mutable_objects(1)->mutable_box()->clear_min(); }},

@@ -4,6 +4,8 @@
 
 #include <atomic>
 #include <chrono>
+#include <mutex>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -14,7 +16,7 @@ namespace {
 
 TEST(Strand, JobsOfOneStrandNeverOverlapAndKeepTheirOrder) {
   WorkerPool pool(4);
-  auto strand = std::make_shared<Strand>(pool);
+  auto strand = std::make_shared<Strand>(pool, "s");
   std::atomic<int> inside{0};
   std::atomic<int> overlaps{0};
   std::vector<int> order;  // Written only by the strand's jobs.
@@ -46,8 +48,8 @@ TEST(Strand, JobsOfOneStrandNeverOverlapAndKeepTheirOrder) {
 
 TEST(Strand, DifferentStrandsRunInParallel) {
   WorkerPool pool(2);
-  auto a = std::make_shared<Strand>(pool);
-  auto b = std::make_shared<Strand>(pool);
+  auto a = std::make_shared<Strand>(pool, "a");
+  auto b = std::make_shared<Strand>(pool, "b");
   // Each job waits (bounded) for the other strand's job to start: only
   // parallel execution lets both see each other.
   std::atomic<bool> a_started{false}, b_started{false};
@@ -73,10 +75,10 @@ TEST(Strand, DifferentStrandsRunInParallel) {
 
 TEST(WorkerPool, DrainWaitsForJobsThatPostMoreJobs) {
   WorkerPool pool(2);
-  auto strand = std::make_shared<Strand>(pool);
+  auto strand = std::make_shared<Strand>(pool, "s");
   std::atomic<int> done{0};
   for (int i = 0; i < 50; ++i) {
-    pool.submit([&](Scratch&) {
+    pool.submit("c", [&](Scratch&) {
       strand->post([&](Scratch&) {
         std::this_thread::sleep_for(std::chrono::microseconds(200));
         done.fetch_add(1);
@@ -91,9 +93,63 @@ TEST(WorkerPool, DestructorRunsQueuedJobs) {
   std::atomic<int> done{0};
   {
     WorkerPool pool(1);
-    for (int i = 0; i < 100; ++i) pool.submit([&](Scratch&) { done.fetch_add(1); });
+    for (int i = 0; i < 100; ++i) pool.submit(i % 2 ? "a" : "b", [&](Scratch&) { done.fetch_add(1); });
   }
   EXPECT_EQ(done.load(), 100);
+}
+
+// One worker, a client with a backlog of 1,000 jobs, then one job from another
+// client: the second client's job runs second, not after the backlog.
+TEST(WorkerPool, ClientsTakeTurns) {
+  WorkerPool pool(1);
+  std::mutex mu;
+  std::vector<std::string> ran;  // Guarded by mu.
+  std::atomic<bool> release{false}, started{false};
+  // The first job holds the only worker until everything is queued.
+  pool.submit("flood", [&](Scratch&) {
+    started.store(true);
+    while (!release.load()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    std::lock_guard<std::mutex> lock(mu);
+    ran.push_back("flood");
+  });
+  while (!started.load()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  for (int i = 0; i < 1000; ++i)
+    pool.submit("flood", [&](Scratch&) {
+      std::lock_guard<std::mutex> lock(mu);
+      ran.push_back("flood");
+    });
+  pool.submit("viewer", [&](Scratch&) {
+    std::lock_guard<std::mutex> lock(mu);
+    ran.push_back("viewer");
+  });
+  pool.submit("other", [&](Scratch&) {
+    std::lock_guard<std::mutex> lock(mu);
+    ran.push_back("other");
+  });
+  EXPECT_EQ(pool.queued(), 1002u);
+  release.store(true);
+  pool.drain();
+  EXPECT_EQ(pool.queued(), 0u);
+  ASSERT_EQ(ran.size(), 1003u);
+  // The held job, then one turn each in order of arrival: the flood's next
+  // job, the viewer's, the other client's; then the rest of the flood.
+  EXPECT_EQ(ran[1], "flood");
+  EXPECT_EQ(ran[2], "viewer");
+  EXPECT_EQ(ran[3], "other");
+  for (std::size_t i = 4; i < ran.size(); ++i) EXPECT_EQ(ran[i], "flood") << i;
+}
+
+// Jobs of one client keep their order.
+TEST(WorkerPool, OneClientsJobsRunInOrder) {
+  WorkerPool pool(1);
+  std::vector<int> order;  // Written by the only worker.
+  for (int i = 0; i < 500; ++i) {
+    pool.submit("a", [&order, i](Scratch&) { order.push_back(i); });
+    pool.submit("b", [](Scratch&) {});
+  }
+  pool.drain();
+  ASSERT_EQ(order.size(), 500u);
+  for (int i = 0; i < 500; ++i) EXPECT_EQ(order[static_cast<std::size_t>(i)], i);
 }
 
 }  // namespace
