@@ -78,6 +78,8 @@ int run(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--max-message-mib", max_message_mib, "Largest message accepted or sent, MiB")
       ->capture_default_str();
+  app.add_flag("--reflection", config.reflection,
+               "Serve gRPC server reflection, which answers without a token: trusted networks only");
   app.add_option("--port-file", config.port_file,
                  "Write the bound port to this file once serving (for scripts, with port 0)")
       ->type_name("FILE");

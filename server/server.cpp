@@ -9,11 +9,14 @@
 #include <sstream>
 #include <thread>
 
+#include <grpcpp/ext/health_check_service_server_builder_option.h>
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/health_check_service_interface.h>
+#include <grpcpp/impl/server_builder_option.h>
 
 #include "auth.h"
+#include "health.h"
 #include "metrics.h"
 #include "pool.h"
 #include "service.h"
@@ -43,6 +46,19 @@ std::string id_from_path(const std::string& path) {
   if (stem.empty() || stem[0] == '.') stem = "scene" + stem;
   return stem;
 }
+
+/// Removes server reflection from one builder. Linking gRPC's reflection
+/// library registers its plugin for every builder at static initialization,
+/// so not asking for it is not enough to leave it out.
+class WithoutReflection final : public grpc::ServerBuilderOption {
+ public:
+  void UpdateArguments(grpc::ChannelArguments*) override {}
+  void UpdatePlugins(std::vector<std::unique_ptr<grpc::ServerBuilderPlugin>>* plugins) override {
+    std::erase_if(*plugins, [](const std::unique_ptr<grpc::ServerBuilderPlugin>& p) {
+      return p->name() == "proto_server_reflection";
+    });
+  }
+};
 
 class ServerImpl final : public Server {
  public:
@@ -138,11 +154,17 @@ class ServerImpl final : public Server {
       creds = grpc::InsecureServerCredentials();
     }
 
-    grpc::EnableDefaultHealthCheckService(true);
-    grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+    if (config_.reflection) grpc::reflection::InitProtoReflectionServerBuilderPlugin();
     grpc::ServerBuilder builder;
     builder.AddListeningPort(config_.listen, creds, &port_);
     builder.RegisterService(service_.get());
+    // Our own health service (health.h), owned by the server; it replaces
+    // gRPC's default one.
+    auto health = std::make_unique<HealthService>();
+    builder.RegisterService(health.get());
+    builder.SetOption(std::make_unique<grpc::HealthCheckServiceServerBuilderOption>(std::move(health)));
+    // Reflection answers without a token: only on request.
+    if (!config_.reflection) builder.SetOption(std::make_unique<WithoutReflection>());
     builder.SetMaxReceiveMessageSize(config_.max_message_bytes);
     builder.SetMaxSendMessageSize(config_.max_message_bytes);
     // Dead peers are noticed (and their streams freed) within a minute.
@@ -152,7 +174,8 @@ class ServerImpl final : public Server {
     builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
     server_ = builder.BuildAndStart();
     if (!server_ || port_ == 0) return fail(error, "--listen " + config_.listen + ": cannot listen there");
-    server_->GetHealthCheckService()->SetServingStatus(true);
+    server_->GetHealthCheckService()->SetServingStatus("", true);
+    server_->GetHealthCheckService()->SetServingStatus(v1::Visibility::service_full_name(), true);
 
     saver_ = std::thread([this] { save_loop(); });
     if (!tokens_.enabled()) log_("no --tokens: every client may create, delete, move and view");
@@ -176,7 +199,10 @@ class ServerImpl final : public Server {
     if (stopped_) return;
     stopped_ = true;
     if (server_) {
+      // NOT_SERVING, and the health Watch streams end now rather than when
+      // the grace runs out.
       server_->GetHealthCheckService()->SetServingStatus(false);
+      server_->GetHealthCheckService()->Shutdown();
       service_->begin_shutdown();
       const auto grace = std::chrono::system_clock::now() +
                          std::chrono::milliseconds(static_cast<long>(config_.shutdown_grace_s * 1000));

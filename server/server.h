@@ -28,6 +28,7 @@ struct ServerConfig {
   double shutdown_grace_s = 5.0;            ///< How long in-flight calls may take at shutdown.
   double max_view_lead_s = 1.0;             ///< How far viewers may run beyond the simulation's clock.
   double max_time_step_s = 3600.0;          ///< How far one simulation batch may advance the clock.
+  bool reflection = false;                  ///< Serve gRPC server reflection (it needs no token).
   SceneOptions scene_options;
 };
 
