@@ -471,13 +471,17 @@ ServerProcess::~ServerProcess() {
   const std::string port_file = path("port");
   std::error_code ec;
   fs::remove(port_file, ec);
-  std::vector<std::string> argv = {VOXVIS_SERVER, "--listen",   "127.0.0.1:0", "--port-file",
-                                   port_file,     "--data-dir", data_dir()};
+  // VOXVIS_TEST_SERVER runs the tests against another build (a mutation
+  // check, or the previous release).
+  const char* other = std::getenv("VOXVIS_TEST_SERVER");
+  const std::string binary = other != nullptr && *other != '\0' ? other : VOXVIS_SERVER;
+  std::vector<std::string> argv = {binary,    "--listen",   "127.0.0.1:0", "--port-file",
+                                   port_file, "--data-dir", data_dir()};
   argv.insert(argv.end(), extra_args_.begin(), extra_args_.end());
   child_ = std::make_unique<ChildProcess>();
   const std::string log_path = path("server.log");
   if (!child_->spawn(argv, log_path, log_path, extra_env_))
-    return ::testing::AssertionFailure() << "cannot start " << VOXVIS_SERVER;
+    return ::testing::AssertionFailure() << "cannot start " << binary;
   port_ = 0;
   const bool up = wait_until(
       [&] {

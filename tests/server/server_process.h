@@ -1,6 +1,7 @@
 // server_process.h — the harness of the integration tests: the real
-// voxvis-server binary (VOXVIS_SERVER) run as a child process on a loopback
-// port, and thin wrappers around the generated gRPC stubs.
+// voxvis-server binary (VOXVIS_SERVER, or the one the environment variable
+// VOXVIS_TEST_SERVER names) run as a child process on a loopback port, and
+// thin wrappers around the generated gRPC stubs.
 //
 // Design choices:
 //  * The tests talk to the server through the generated stubs only
