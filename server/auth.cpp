@@ -167,4 +167,36 @@ grpc::Status TokenTable::authorize(const grpc::CallbackServerContext* context, R
   return authorize_header(std::string_view(value.data(), value.size()), true, need);
 }
 
+namespace {
+
+class TokenGate final : public grpc::AuthMetadataProcessor {
+ public:
+  explicit TokenGate(const TokenTable& tokens) : tokens_(tokens) {}
+  // Runs on the transport's thread: a few string comparisons.
+  bool IsBlocking() const override { return false; }
+  grpc::Status Process(const InputMetadata& metadata, grpc::AuthContext* /*context*/,
+                       OutputMetadata* /*consumed*/, OutputMetadata* /*response*/) override {
+    const auto path = metadata.find(":path");
+    if (path != metadata.end() && path->second.starts_with("/grpc.health.v1.Health/"))
+      return grpc::Status::OK;
+    const auto [first, last] = metadata.equal_range("authorization");
+    if (first == last) return tokens_.authorize_header({}, false, Role::Viewer);
+    if (std::next(first) != last) {
+      return grpc::Status(grpc::StatusCode::UNAUTHENTICATED,
+                          "malformed authorization metadata: more than one value");
+    }
+    return tokens_.authorize_header(std::string_view(first->second.data(), first->second.size()),
+                                    true, Role::Viewer);
+  }
+
+ private:
+  const TokenTable& tokens_;
+};
+
+}  // namespace
+
+std::shared_ptr<grpc::AuthMetadataProcessor> TokenTable::gate() const {
+  return std::make_shared<TokenGate>(*this);
+}
+
 }  // namespace voxvis::server

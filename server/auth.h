@@ -14,6 +14,7 @@
 // 512 printable ASCII characters without white space; a token may appear once.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <string_view>
 #include <unordered_map>
@@ -48,6 +49,14 @@ class TokenTable {
 
   /// The same check on the raw metadata value (for tests).
   grpc::Status authorize_header(std::string_view authorization, bool present, Role need) const;
+
+  /// A gate for TLS credentials: refuses a call without a known token (any
+  /// role; the handlers check roles) when its headers arrive, before gRPC
+  /// reads its message, so an unauthenticated request costs no buffer
+  /// however large it claims to be. The health service passes without a
+  /// token. gRPC allows such a processor on TLS credentials only. The table
+  /// must outlive the server.
+  std::shared_ptr<grpc::AuthMetadataProcessor> gate() const;
 
  private:
   bool enabled_ = false;

@@ -34,7 +34,7 @@ void log_line(const std::string& text) {
 
 int run(int argc, char** argv) {
   voxvis::server::ServerConfig config;
-  double budget_mib = 0.0, max_message_mib = 64.0;
+  double budget_mib = 0.0, max_message_mib = 64.0, grpc_memory_mib = 0.0;
   CLI::App app{
       "voxvis-server — serves potentially visible sets over gRPC (proto/voxvis/v1/voxvis.proto).\n"
       "Scenes created through the API are kept in the data directory and loaded\n"
@@ -74,6 +74,16 @@ int run(int argc, char** argv) {
                  "Seconds one simulation batch may advance a scene's clock (the first batch on "
                  "a scene may set it anywhere within ±1e10 s)")
       ->capture_default_str();
+  app.add_option("--grpc-memory-mib", grpc_memory_mib,
+                 "Memory gRPC may use for message buffers, all connections together, MiB "
+                 "(default: the larger of 256 and four --max-message-mib)")
+      ->type_name("MIB");
+  app.add_option("--max-calls", config.max_calls,
+                 "Calls in progress at once, server-wide; more are refused with RESOURCE_EXHAUSTED")
+      ->capture_default_str();
+  app.add_option("--max-streams-per-connection", config.max_streams_per_connection,
+                 "Concurrent calls per client connection (HTTP/2); more wait in the client")
+      ->capture_default_str();
   app.add_option("--workers", config.workers, "Worker threads for frames and moves (0: one per core)")
       ->capture_default_str();
   app.add_option("--max-message-mib", max_message_mib, "Largest message accepted or sent, MiB")
@@ -103,6 +113,11 @@ int run(int argc, char** argv) {
     std::fprintf(stderr, "voxvis-server: error: --max-message-mib: must be in [0.001, 2047]\n");
     return 2;
   }
+  if (!std::isfinite(grpc_memory_mib) || grpc_memory_mib < 0 || grpc_memory_mib > 1048576) {
+    std::fprintf(stderr, "voxvis-server: error: --grpc-memory-mib: must be in [0, 1048576]\n");
+    return 2;
+  }
+  config.grpc_memory_bytes = static_cast<std::uint64_t>(grpc_memory_mib * 1048576.0);
   config.memory_budget_bytes = static_cast<std::uint64_t>(budget_mib * 1048576.0);
   config.max_message_bytes = static_cast<int>(max_message_mib * 1048576.0);
 

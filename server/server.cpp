@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <condition_variable>
 #include <fstream>
@@ -14,6 +15,7 @@
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/health_check_service_interface.h>
 #include <grpcpp/impl/server_builder_option.h>
+#include <grpcpp/resource_quota.h>
 
 #include "auth.h"
 #include "health.h"
@@ -75,6 +77,16 @@ class ServerImpl final : public Server {
       return fail(error, "--max-time-step must be within (0, 2e10] seconds");
     if (config_.tls_cert.empty() != config_.tls_key.empty())
       return fail(error, "--tls-cert and --tls-key go together");
+    if (config_.max_calls < 1) return fail(error, "--max-calls must be >= 1");
+    if (config_.max_streams_per_connection < 1)
+      return fail(error, "--max-streams-per-connection must be >= 1");
+    const std::uint64_t grpc_memory =
+        config_.grpc_memory_bytes != 0
+            ? config_.grpc_memory_bytes
+            : std::max<std::uint64_t>(256ull << 20, 4ull * std::uint64_t(config_.max_message_bytes));
+    if (grpc_memory < std::uint64_t(config_.max_message_bytes) + (16ull << 20))
+      return fail(error, "--grpc-memory-mib must exceed --max-message-mib by at least 16 MiB "
+                         "(a message of the largest size must fit)");
     unsigned workers = config_.workers ? config_.workers : std::thread::hardware_concurrency();
     if (workers == 0) workers = 2;
     std::uint64_t budget = config_.memory_budget_bytes;
@@ -101,6 +113,7 @@ class ServerImpl final : public Server {
     sc.workers = workers;
     sc.max_view_lead_s = config_.max_view_lead_s;
     sc.max_time_step_s = config_.max_time_step_s;
+    sc.max_calls = config_.max_calls;
     service_ = std::make_unique<Service>(sc, *pool_, store_, tokens_, *metrics_, log_);
 
     // Scenes acknowledged in earlier runs, at their last saved positions.
@@ -150,6 +163,9 @@ class ServerImpl final : public Server {
         return fail(error, "--tls-cert " + config_.tls_cert + ": cannot read the file");
       opts.pem_key_cert_pairs.push_back(pair);
       creds = grpc::SslServerCredentials(opts);
+      // With TLS, calls without a known token are refused on their headers,
+      // before their messages are read (gRPC allows this on TLS only).
+      if (tokens_.enabled()) creds->SetAuthMetadataProcessor(tokens_.gate());
     } else {
       creds = grpc::InsecureServerCredentials();
     }
@@ -167,6 +183,13 @@ class ServerImpl final : public Server {
     if (!config_.reflection) builder.SetOption(std::make_unique<WithoutReflection>());
     builder.SetMaxReceiveMessageSize(config_.max_message_bytes);
     builder.SetMaxSendMessageSize(config_.max_message_bytes);
+    // gRPC reads a whole message before it checks its size, so the size
+    // limit does not bound memory; the quota does, for all connections
+    // together (under pressure gRPC resets streams to stay within it).
+    grpc::ResourceQuota quota("voxvis-server");
+    quota.Resize(static_cast<std::size_t>(grpc_memory));
+    builder.SetResourceQuota(quota);
+    builder.AddChannelArgument(GRPC_ARG_MAX_CONCURRENT_STREAMS, config_.max_streams_per_connection);
     // Dead peers are noticed (and their streams freed) within a minute.
     builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIME_MS, 30000);
     builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 10000);
@@ -180,7 +203,9 @@ class ServerImpl final : public Server {
     saver_ = std::thread([this] { save_loop(); });
     if (!tokens_.enabled()) log_("no --tokens: every client may create, delete, move and view");
     log_("listening on port " + std::to_string(port_) + " (" + std::to_string(workers) +
-         " workers, memory budget " + std::to_string(budget >> 20) + " MiB)");
+         " workers, memory budget " + std::to_string(budget >> 20) + " MiB, gRPC buffers " +
+         std::to_string(grpc_memory >> 20) + " MiB, at most " + std::to_string(config_.max_calls) +
+         " calls)");
     if (!config_.metrics_address.empty())
       log_("metrics at http://" + config_.metrics_address.substr(0, config_.metrics_address.rfind(':')) +
            ":" + std::to_string(metrics_->port()) + "/metrics");

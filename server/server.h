@@ -25,6 +25,11 @@ struct ServerConfig {
   double save_period_s = 2.0;               ///< Seconds between position saves, > 0.
   unsigned workers = 0;                     ///< 0: one per core.
   int max_message_bytes = 64 << 20;         ///< Largest message accepted, bytes.
+  /// Memory gRPC may use for its buffers (ResourceQuota); 0: the larger of
+  /// 256 MiB and four largest messages.
+  std::uint64_t grpc_memory_bytes = 0;
+  int max_streams_per_connection = 256;     ///< HTTP/2 concurrent streams per connection.
+  int max_calls = 4096;                     ///< Calls in progress, server-wide.
   double shutdown_grace_s = 5.0;            ///< How long in-flight calls may take at shutdown.
   double max_view_lead_s = 1.0;             ///< How far viewers may run beyond the simulation's clock.
   double max_time_step_s = 3600.0;          ///< How far one simulation batch may advance the clock.

@@ -6,29 +6,17 @@
 #include <optional>
 #include <utility>
 
+#include "calls.h"
 #include "convert.h"
+#include "streams.h"
 
 namespace voxvis::server {
 namespace {
 
 using Clock = std::chrono::steady_clock;
 
-grpc::Status invalid(const Status& s) {
-  return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, s.str());
-}
-
 std::string mib(std::uint64_t bytes) {
   return std::to_string((bytes + (1u << 20) - 1) >> 20) + " MiB";
-}
-
-/// a \ b for ascending a and b.
-void difference(const std::vector<ObjectId>& a, const std::vector<ObjectId>& b,
-                google::protobuf::RepeatedField<std::uint32_t>* out) {
-  std::size_t j = 0;
-  for (ObjectId id : a) {
-    while (j < b.size() && b[j] < id) ++j;
-    if (j == b.size() || b[j] != id) out->Add(id);
-  }
 }
 
 /// Frames of one scene finish in any order: the statistic keeps the latest.
@@ -38,38 +26,27 @@ void store_max(std::atomic<double>& a, double v) {
   }
 }
 
-/// A request's scene id, checked before any message could echo it.
-grpc::Status check_scene_id(const std::string& id, const char* field = "scene_id") {
-  if (valid_scene_id(id)) return grpc::Status::OK;
-  return invalid(Status::Error(field, "must be 1-64 characters from [A-Za-z0-9._-], not starting "
-                                      "with '.' (got " + std::to_string(id.size()) + " bytes)"));
-}
-
-/// NOT_FOUND for a (valid, hence short) scene id.
-grpc::Status no_scene(const std::string& id) {
-  return grpc::Status(grpc::StatusCode::NOT_FOUND, "scene_id: no scene '" + id + "'");
-}
-
-grpc::Status deleted(const SceneEntry& e) {
-  return grpc::Status(grpc::StatusCode::NOT_FOUND, "scene '" + e.id + "' was deleted");
-}
-
-grpc::Status shutting_down_status() {
-  return grpc::Status(grpc::StatusCode::UNAVAILABLE, "server is shutting down");
-}
-
-void add_ids(const std::vector<ObjectId>& ids, google::protobuf::RepeatedField<std::uint32_t>* out) {
-  out->Reserve(static_cast<int>(ids.size()));
-  for (ObjectId id : ids) out->AddAlreadyReserved(id);
+/// Parses a raw unary request into a new call; null after answering
+/// INVALID_ARGUMENT when the bytes are not a Req.
+template <class Req, class Resp>
+TypedUnaryCall<Req, Resp>* start_call(Service* svc, const char* method, const grpc::ByteBuffer* in,
+                                      grpc::ByteBuffer* out, grpc::ServerUnaryReactor** reactor) {
+  auto* call = new TypedUnaryCall<Req, Resp>(out);
+  *reactor = call;
+  if (grpc::Status busy = svc->enter_call(); !busy.ok()) {
+    svc->finish_unary(call, method, busy);
+    return nullptr;
+  }
+  call->on_done([svc] { svc->leave_call(); });
+  if (parse_message(*in, &call->req)) return call;
+  svc->finish_unary(call, method, malformed(Req::descriptor()->full_name(), in->Length()));
+  return nullptr;
 }
 
 }  // namespace
 
 // ---------------------------------------------------------------------------
 // Wake list
-
-class SimReactor;
-void deliver_wake(SimReactor* r, std::shared_ptr<const WakeSnapshot> snap);
 
 void SceneEntry::refresh_wake() {
   std::lock_guard<std::mutex> lock(wake_mu);
@@ -100,6 +77,12 @@ void SceneEntry::after_frame(const FrameResult& result) {
   refresh_wake();
 }
 
+void SceneEntry::after_moves(double at) {
+  store_max(time, at);
+  store_max(sim_time, at);
+  sim_clock_set = true;
+}
+
 double SceneEntry::view_time(double t, double lead) const {
   return std::fmin(t, sim_time.load(std::memory_order_relaxed) + lead);
 }
@@ -115,537 +98,6 @@ void SceneEntry::subscribe(const std::shared_ptr<WakeSink>& sink) {
 void SceneEntry::unsubscribe(const std::shared_ptr<WakeSink>& sink) {
   std::lock_guard<std::mutex> lock(wake_mu);
   sinks.erase(std::remove(sinks.begin(), sinks.end(), sink), sinks.end());
-}
-
-// ---------------------------------------------------------------------------
-// What both streams share: admission (token, registration for shutdown), the
-// stop-then-finish protocol, and a lifetime that outlasts gRPC's OnDone until
-// the last pool job referencing the stream has ended. `Self` provides
-// advance_locked() (writes, reads, Finish), on_stop_locked() and on_done()
-// (hooks), and on_release() (called once, just before deletion).
-
-template <class Req, class Resp, class Self>
-class StreamReactor : public grpc::ServerBidiReactor<Req, Resp>, public Stream {
- public:
-  void stop_if(const SceneEntry* scene, const grpc::Status& status) override {
-    std::lock_guard<std::mutex> lock(mu_);
-    if (scene && entry_.get() != scene) return;
-    stop_locked(status);
-    self().advance_locked();
-  }
-
-  void OnWriteDone(bool ok) override {
-    std::lock_guard<std::mutex> lock(mu_);
-    writing_ = false;
-    if (!ok) stop_locked(grpc::Status(grpc::StatusCode::CANCELLED, "client gone"));
-    self().advance_locked();
-  }
-
-  void OnCancel() override {
-    std::lock_guard<std::mutex> lock(mu_);
-    stop_locked(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled"));
-    self().advance_locked();
-  }
-
-  void OnDone() override {
-    if (registered_) svc_->remove_stream(this);
-    self().on_done();
-    bool del;
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      done_ = true;
-      del = jobs_ == 0;
-    }
-    if (del) release();
-  }
-
- protected:
-  StreamReactor(Service* svc, const char* method) : svc_(svc), method_(method) {}
-
-  /// Checks the call's token and registers the stream. Call from the
-  /// derived constructor without holding mu_ (the service's stream lock comes
-  /// first in the lock order).
-  grpc::Status admit(grpc::CallbackServerContext* ctx, Role role) {
-    client_ = ctx->peer();
-    const grpc::Status auth = svc_->tokens().authorize(ctx, role);
-    registered_ = svc_->add_stream(this);
-    if (!auth.ok()) return auth;
-    if (!registered_) return grpc::Status(grpc::StatusCode::UNAVAILABLE, "server is shutting down");
-    return grpc::Status::OK;
-  }
-
-  void stop_locked(const grpc::Status& status) {
-    if (!stopping_) {
-      stopping_ = true;
-      stop_status_ = status;
-    }
-    self().on_stop_locked();
-  }
-
-  /// Finish with the stop status, or OK when the client closed.
-  void finish_locked() {
-    finished_ = true;
-    const grpc::Status s = stopping_ ? stop_status_ : grpc::Status::OK;
-    if (!s.ok() && s.error_code() != grpc::StatusCode::CANCELLED) svc_->count_error(method_, s);
-    this->Finish(s);
-  }
-
-  /// Counts the end of a pool job; true when the stream is to be released.
-  bool end_job_locked() {
-    --jobs_;
-    return done_ && jobs_ == 0;
-  }
-
-  void release() {
-    self().on_release();
-    delete &self();
-  }
-
-  Service* svc_;
-  const char* method_;
-  std::string client_;       // The connection's peer: the pool's admission key. Set in admit.
-  bool registered_ = false;  // Written before any reaction can run.
-  std::mutex mu_;
-  std::shared_ptr<SceneEntry> entry_;  // Guarded by mu_; set by the first message.
-  bool writing_ = false, stopping_ = false, finished_ = false, done_ = false;  // Guarded by mu_.
-  grpc::Status stop_status_;           // Guarded by mu_.
-  int jobs_ = 0;                       // Guarded by mu_: pool jobs referencing this.
-
- private:
-  Self& self() { return static_cast<Self&>(*this); }
-};
-
-// ---------------------------------------------------------------------------
-// View: one viewer's frames.
-//
-// State machine (all under mu_): a read is always outstanding until the
-// client closes or the stream stops; the newest unanswered request waits in
-// pending_ (an older one there is skipped); one frame computes at a time, its
-// answer waits in ready_ while a write is in flight; a new frame is computed
-// only when no answer is waiting, so a viewer that does not read costs one
-// request, one answer and one write in flight. Deltas are taken at write time
-// against the last PVS written, so skipped frames never break them.
-
-class ViewReactor final
-    : public StreamReactor<v1::ViewRequest, v1::ViewResponse, ViewReactor> {
-  friend class StreamReactor<v1::ViewRequest, v1::ViewResponse, ViewReactor>;
-
- public:
-  ViewReactor(Service* svc, grpc::CallbackServerContext* ctx) : StreamReactor(svc, "View") {
-    const grpc::Status admitted = admit(ctx, Role::Viewer);
-    std::lock_guard<std::mutex> lock(mu_);
-    if (admitted.ok()) {
-      StartRead(&read_);
-    } else {
-      stop_locked(admitted);
-    }
-    advance_locked();
-  }
-
-  void OnReadDone(bool ok) override {
-    std::lock_guard<std::mutex> lock(mu_);
-    if (!ok) {
-      eof_ = true;
-    } else if (!stopping_) {
-      grpc::Status s = accept_locked();
-      if (s.ok()) {
-        StartRead(&read_);
-      } else {
-        stop_locked(s);
-      }
-    }
-    advance_locked();
-  }
-
- private:
-  struct Pending {
-    std::uint64_t frame = 0;
-    double t = 0.0;
-    Camera camera;
-    Clock::time_point received;
-  };
-  struct Ready {
-    std::uint64_t frame = 0;
-    double t = 0.0;
-    FrameResult result;
-    Clock::time_point received;
-    std::uint32_t skipped = 0;
-  };
-
-  grpc::Status accept_locked() {
-    const v1::ViewRequest& r = read_;
-    if (!entry_) {
-      if (r.scene_id().empty())
-        return invalid(Status::Error("scene_id", "the first message of a stream must name the scene"));
-      if (grpc::Status s = check_scene_id(r.scene_id()); !s.ok()) return s;
-      if (r.encoding() != v1::PVS_FULL && r.encoding() != v1::PVS_DELTA)
-        return invalid(Status::Error("encoding", "unknown value " + std::to_string(r.encoding())));
-      // entry_ set means counted as a viewer (released in on_release).
-      entry_ = svc_->find(r.scene_id());
-      if (!entry_) return no_scene(r.scene_id());
-      encoding_ = r.encoding();
-      entry_->viewers.fetch_add(1, std::memory_order_relaxed);
-      if (entry_->metrics) entry_->metrics->viewers(+1);
-    } else if (!r.scene_id().empty() && r.scene_id() != entry_->id) {
-      return invalid(Status::Error("scene_id", "cannot change within a stream (stream is on '" +
-                                                   entry_->id + "')"));
-    }
-    if (have_frame_ && r.frame() <= last_frame_)
-      return invalid(Status::Error("frame", "must increase along a stream: " +
-                                                std::to_string(r.frame()) + " after " +
-                                                std::to_string(last_frame_)));
-    if (Status s = validate_time("t", r.t()); !s) return invalid(s);
-    if (have_frame_ && r.t() < last_t_)
-      return invalid(Status::Error("t", "must not decrease along a stream"));
-    Pending p;
-    if (Status s = camera_from_proto(r.camera(), r.has_camera(), &p.camera); !s) return invalid(s);
-    have_frame_ = true;
-    last_frame_ = r.frame();
-    last_t_ = r.t();
-    p.frame = r.frame();
-    p.t = r.t();
-    p.received = Clock::now();
-    if (pending_) ++skipped_;
-    pending_ = p;
-    return grpc::Status::OK;
-  }
-
-  void on_stop_locked() { pending_.reset(); }
-  void on_done() {}
-
-  void advance_locked() {
-    if (finished_) return;
-    if (!writing_ && ready_) write_locked();
-    if (!stopping_ && !computing_ && pending_ && !ready_) {
-      computing_ = true;
-      ++jobs_;
-      Pending p = *pending_;
-      pending_.reset();
-      const std::uint32_t skipped = skipped_;
-      skipped_ = 0;
-      // Frames of one scene run in parallel (the Scene synchronizes itself);
-      // this stream's frames one at a time.
-      svc_->pool().submit(client_, [this, entry = entry_, p, skipped](Scratch& scratch) {
-        compute(*entry, p, skipped, scratch);
-      });
-    }
-    const bool idle = !writing_ && !computing_ && !ready_;
-    if (idle && (stopping_ || (eof_ && !pending_))) finish_locked();
-  }
-
-  // Pool job.
-  void compute(SceneEntry& e, const Pending& p, std::uint32_t skipped, Scratch& scratch) {
-    std::optional<Ready> ready;
-    grpc::Status error;
-    bool stopped;
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      stopped = stopping_;
-    }
-    if (stopped) {
-      // Cancelled, shut down or deleted while queued: nobody waits for it.
-      svc_->count_dropped();
-    } else if (e.deleted.load()) {
-      error = deleted(e);
-    } else {
-      Scene& scene = *e.scene;
-      if (!viewer_added_) {
-        viewer_ = scene.add_viewer();
-        viewer_added_ = true;
-      }
-      ready.emplace();
-      ready->frame = p.frame;
-      ready->received = p.received;
-      ready->skipped = skipped;
-      // The scene's clock is shared: a time behind it is taken as it, one
-      // too far beyond the simulation's as its limit.
-      const double t = e.view_time(p.t, svc_->config().max_view_lead_s);
-      Status s = scene.frame(viewer_, p.camera, t, scratch, &ready->result, Scene::Clock::Latest);
-      ready->t = ready->result.t;
-      if (!s) {
-        error = invalid(s);
-        ready.reset();
-      } else {
-        e.after_frame(ready->result);
-      }
-    }
-    bool del;
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      computing_ = false;
-      if (ready) {
-        ready_ = std::move(ready);
-      } else if (!error.ok()) {
-        stop_locked(error);
-      }
-      advance_locked();
-      del = end_job_locked();
-    }
-    if (del) release();
-  }
-
-  void write_locked() {
-    Ready& r = *ready_;
-    write_.Clear();
-    write_.set_frame(r.frame);
-    write_.set_t(r.t);
-    write_.set_encoding(encoding_);
-    std::vector<ObjectId>& pvs = r.result.pvs;
-    if (encoding_ == v1::PVS_DELTA) {
-      difference(pvs, last_sent_, write_.mutable_added());
-      difference(last_sent_, pvs, write_.mutable_removed());
-    } else {
-      add_ids(pvs, write_.mutable_pvs());
-    }
-    add_ids(r.result.wake, write_.mutable_wake());
-    stats_to_proto(r.result.stats, write_.mutable_stats());
-    write_.set_frames_skipped(r.skipped);
-    const double latency = std::chrono::duration<double>(Clock::now() - r.received).count();
-    write_.set_server_us(latency * 1e6);
-    if (entry_->metrics) {
-      entry_->metrics->frame(r.result.stats, latency);
-      if (r.skipped) entry_->metrics->skipped(r.skipped);
-    }
-    last_sent_ = std::move(pvs);
-    ready_.reset();
-    writing_ = true;
-    StartWrite(&write_);
-  }
-
-  void on_release() {
-    if (!entry_) return;
-    entry_->viewers.fetch_sub(1, std::memory_order_relaxed);
-    if (entry_->metrics) entry_->metrics->viewers(-1);
-    if (viewer_added_) {
-      // The viewer's claims on its last PVS go with it.
-      svc_->pool().submit(client_, [entry = entry_, v = viewer_](Scratch&) {
-        if (!entry->deleted.load()) entry->scene->remove_viewer(v);
-      });
-    }
-  }
-
-  v1::ViewRequest read_;                 // Owned by the outstanding read.
-  v1::ViewResponse write_;               // Owned by the outstanding write.
-  v1::PvsEncoding encoding_ = v1::PVS_FULL;
-  bool have_frame_ = false;
-  std::uint64_t last_frame_ = 0;
-  double last_t_ = 0.0;
-  std::optional<Pending> pending_;       // Guarded by mu_.
-  std::uint32_t skipped_ = 0;            // Guarded by mu_.
-  std::optional<Ready> ready_;           // Guarded by mu_.
-  std::vector<ObjectId> last_sent_;      // Guarded by mu_: PVS of the last answer written.
-  bool computing_ = false, eof_ = false;  // Guarded by mu_.
-  // Touched by this stream's jobs only, one at a time (handed over through mu_).
-  bool viewer_added_ = false;
-  ViewerId viewer_ = 0;
-};
-
-// ---------------------------------------------------------------------------
-// Simulate: one backend's moves and the scene's wake list.
-//
-// One batch is applied at a time, and the next message is read only when the
-// previous acknowledgement has been handed to a write, so a backend that does
-// not read its answers is slowed down instead of queueing acknowledgements.
-// Wake lists are latest-wins: a delta is taken at write time against the
-// last list written.
-
-class SimReactor final
-    : public StreamReactor<v1::SimulateRequest, v1::SimulateResponse, SimReactor> {
-  friend class StreamReactor<v1::SimulateRequest, v1::SimulateResponse, SimReactor>;
-
- public:
-  SimReactor(Service* svc, grpc::CallbackServerContext* ctx) : StreamReactor(svc, "Simulate") {
-    sink_ = std::make_shared<WakeSink>();
-    sink_->reactor = this;
-    const grpc::Status admitted = admit(ctx, Role::Simulation);
-    std::lock_guard<std::mutex> lock(mu_);
-    if (!admitted.ok()) stop_locked(admitted);
-    advance_locked();  // Starts the first read.
-  }
-
-  void on_wake(std::shared_ptr<const WakeSnapshot> snap) {
-    std::lock_guard<std::mutex> lock(mu_);
-    wake_latest_ = std::move(snap);
-    advance_locked();
-  }
-
-  void OnReadDone(bool ok) override {
-    std::lock_guard<std::mutex> lock(mu_);
-    reading_ = false;
-    if (!ok) {
-      eof_ = true;
-    } else if (!stopping_) {
-      grpc::Status s = accept_locked();
-      if (!s.ok()) stop_locked(s);
-    }
-    advance_locked();
-  }
-
- private:
-  void on_done() {
-    // From here on the scene delivers nothing to this stream.
-    std::lock_guard<std::mutex> lock(sink_->mu);
-    sink_->reactor = nullptr;
-  }
-  void on_stop_locked() {}
-
-  grpc::Status accept_locked() {
-    const v1::SimulateRequest& r = read_;
-    if (!entry_) {
-      if (r.scene_id().empty())
-        return invalid(Status::Error("scene_id", "the first message of a stream must name the scene"));
-      if (grpc::Status s = check_scene_id(r.scene_id()); !s.ok()) return s;
-      entry_ = svc_->find(r.scene_id());
-      if (!entry_) return no_scene(r.scene_id());
-      entry_->simulators.fetch_add(1, std::memory_order_relaxed);
-      ++jobs_;
-      entry_->strand->post([this, entry = entry_, sink = sink_](Scratch&) {
-        if (!entry->deleted.load()) entry->subscribe(sink);
-        job_done(std::nullopt, grpc::Status::OK);
-      });
-    } else if (!r.scene_id().empty() && r.scene_id() != entry_->id) {
-      return invalid(Status::Error("scene_id", "cannot change within a stream (stream is on '" +
-                                                   entry_->id + "')"));
-    }
-    if (!r.has_batch()) return grpc::Status::OK;
-    const v1::MoveBatch& b = r.batch();
-    if (Status s = validate_time("batch.t", b.t()); !s) return invalid(s);
-    if (have_t_ && b.t() < last_t_)
-      return invalid(Status::Error("batch.t", "must not decrease along a stream"));
-    std::vector<Move> moves;
-    if (Status s = moves_from_proto(b, &moves); !s) return invalid(s);
-    have_t_ = true;
-    last_t_ = b.t();
-    applying_ = true;
-    ++jobs_;
-    entry_->strand->post([this, entry = entry_, seq = b.seq(), t = b.t(),
-                          moves = std::move(moves)](Scratch&) {
-      apply(*entry, seq, t, moves);
-    });
-    return grpc::Status::OK;
-  }
-
-  // Job of the scene's strand.
-  void apply(SceneEntry& e, std::uint64_t seq, double t, const std::vector<Move>& moves) {
-    bool stopped;
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      stopped = stopping_;
-    }
-    if (stopped) {
-      // Nobody will read the acknowledgement: the batch is not applied.
-      svc_->count_dropped();
-      job_done(std::nullopt, grpc::Status(grpc::StatusCode::CANCELLED, "stream stopped"));
-      return;
-    }
-    if (e.deleted.load()) {
-      job_done(std::nullopt, deleted(e));
-      return;
-    }
-    // One batch may advance the clock by a bounded step; the first one on a
-    // scene adopts the backend's epoch.
-    const double step_limit = svc_->config().max_time_step_s;
-    const double from = e.sim_time.load(std::memory_order_relaxed);
-    if (e.sim_clock_set && t - from > step_limit) {
-      job_done(std::nullopt,
-               invalid(Status::Error("batch.t", num(t) + " is " + num(t - from) +
-                                                    " s beyond the scene's clock (" + num(from) +
-                                                    "); one batch may advance it by at most " +
-                                                    num(step_limit) + " s")));
-      return;
-    }
-    Scene& scene = *e.scene;
-    MoveReport report;
-    Status s = scene.apply_moves(t, moves, &report, Scene::Clock::Latest);
-    const double at = report.t;
-    if (!s) {
-      job_done(std::nullopt, invalid(Status::Error("batch." + s.field, s.message)));
-      return;
-    }
-    e.moves_applied.fetch_add(report.applied, std::memory_order_relaxed);
-    store_max(e.time, at);
-    store_max(e.sim_time, at);
-    e.sim_clock_set = true;
-    if (report.applied) e.positions_dirty.store(true, std::memory_order_relaxed);
-    if (e.metrics) e.metrics->moves(report.applied);
-    e.refresh_wake();
-    v1::MoveAck ack;
-    ack.set_seq(seq);
-    ack.set_applied(report.applied);
-    for (ObjectId id : report.too_fast) ack.add_too_fast(id);
-    ack.set_t(at);
-    job_done(std::move(ack), grpc::Status::OK);
-  }
-
-  void job_done(std::optional<v1::MoveAck> ack, const grpc::Status& status) {
-    bool del;
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      if (ack) {
-        applying_ = false;
-        ack_ = std::move(ack);
-      } else if (!status.ok()) {
-        applying_ = false;
-        stop_locked(status);
-      }
-      advance_locked();
-      del = end_job_locked();
-    }
-    if (del) release();
-  }
-
-  void advance_locked() {
-    if (finished_) return;
-    if (!writing_) {
-      if (ack_) {
-        write_.Clear();
-        *write_.mutable_ack() = std::move(*ack_);
-        ack_.reset();
-        writing_ = true;
-        StartWrite(&write_);
-      } else if (wake_latest_ && wake_latest_ != wake_sent_ && !stopping_) {
-        write_.Clear();
-        v1::WakeList* w = write_.mutable_wake();
-        w->set_version(wake_latest_->version);
-        w->set_size(static_cast<std::uint32_t>(wake_latest_->ids.size()));
-        if (!wake_sent_) {
-          w->set_full(true);
-          add_ids(wake_latest_->ids, w->mutable_ids());
-        } else {
-          difference(wake_latest_->ids, wake_sent_->ids, w->mutable_woken());
-          difference(wake_sent_->ids, wake_latest_->ids, w->mutable_slept());
-        }
-        wake_sent_ = wake_latest_;
-        writing_ = true;
-        StartWrite(&write_);
-      }
-    }
-    if (!reading_ && !eof_ && !stopping_ && !applying_ && !ack_) {
-      reading_ = true;
-      StartRead(&read_);
-    }
-    const bool idle = !writing_ && !applying_ && !ack_;
-    if (idle && (stopping_ || eof_)) finish_locked();
-  }
-
-  void on_release() {
-    if (!entry_) return;
-    entry_->simulators.fetch_sub(1, std::memory_order_relaxed);
-    entry_->unsubscribe(sink_);
-  }
-
-  std::shared_ptr<WakeSink> sink_;
-  v1::SimulateRequest read_;
-  v1::SimulateResponse write_;
-  bool have_t_ = false;
-  double last_t_ = 0.0;
-  std::optional<v1::MoveAck> ack_;     // Guarded by mu_: acknowledgement waiting to be written.
-  std::shared_ptr<const WakeSnapshot> wake_latest_, wake_sent_;  // Guarded by mu_.
-  bool reading_ = false, applying_ = false, eof_ = false;  // Guarded by mu_.
-};
-
-void deliver_wake(SimReactor* r, std::shared_ptr<const WakeSnapshot> snap) {
-  r->on_wake(std::move(snap));
 }
 
 // ---------------------------------------------------------------------------
@@ -689,16 +141,24 @@ void Service::begin_shutdown() {
   for (Stream* s : streams_) s->stop_if(nullptr, shutting_down_status());
 }
 
+grpc::Status Service::enter_call() {
+  if (calls_.fetch_add(1, std::memory_order_relaxed) < config_.max_calls) return grpc::Status::OK;
+  calls_.fetch_sub(1, std::memory_order_relaxed);
+  return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                      "server busy: " + std::to_string(config_.max_calls) +
+                          " calls in progress (--max-calls); try again");
+}
+
 void Service::count_error(const char* method, const grpc::Status& status) {
   metrics_.error(method, status.error_code());
 }
 
-void Service::finish_unary(grpc::ServerUnaryReactor* r, const char* method, const grpc::Status& s) {
+void Service::finish_unary(UnaryCall* r, const char* method, const grpc::Status& s) {
   if (!s.ok()) count_error(method, s);
-  r->Finish(s);
+  r->finish(s);
 }
 
-std::shared_ptr<SceneEntry> Service::find_or_finish(grpc::ServerUnaryReactor* r, const char* method,
+std::shared_ptr<SceneEntry> Service::find_or_finish(UnaryCall* r, const char* method,
                                                     const std::string& id) {
   if (grpc::Status s = check_scene_id(id); !s.ok()) {
     finish_unary(r, method, s);
@@ -848,16 +308,19 @@ void Service::save_positions() {
 // --- RPCs ------------------------------------------------------------------
 
 grpc::ServerUnaryReactor* Service::CreateScene(grpc::CallbackServerContext* ctx,
-                                               const v1::CreateSceneRequest* req,
-                                               v1::SceneInfo* resp) {
-  grpc::ServerUnaryReactor* r = ctx->DefaultReactor();
+                                               const grpc::ByteBuffer* in, grpc::ByteBuffer* out) {
+  grpc::ServerUnaryReactor* reactor = nullptr;
+  auto* r = start_call<v1::CreateSceneRequest, v1::SceneInfo>(this, "CreateScene", in, out, &reactor);
+  if (!r) return reactor;
+  const v1::CreateSceneRequest* req = &r->req;
+  v1::SceneInfo* resp = &r->resp;
   if (grpc::Status a = tokens_.authorize(ctx, Role::Admin); !a.ok()) {
     finish_unary(r, "CreateScene", a);
-    return r;
+    return reactor;
   }
   if (grpc::Status s = check_scene_id(req->scene_id()); !s.ok()) {
     finish_unary(r, "CreateScene", s);
-    return r;
+    return reactor;
   }
   // Parsing and building a grid take long: off the callback thread.
   pool_.submit(ctx->peer(), [this, r, req, resp](Scratch&) {
@@ -894,20 +357,22 @@ grpc::ServerUnaryReactor* Service::CreateScene(grpc::CallbackServerContext* ctx,
     }
     finish_unary(r, "CreateScene", g);
   });
-  return r;
+  return reactor;
 }
 
 grpc::ServerUnaryReactor* Service::DeleteScene(grpc::CallbackServerContext* ctx,
-                                               const v1::DeleteSceneRequest* req,
-                                               v1::DeleteSceneResponse* /*resp*/) {
-  grpc::ServerUnaryReactor* r = ctx->DefaultReactor();
+                                               const grpc::ByteBuffer* in, grpc::ByteBuffer* out) {
+  grpc::ServerUnaryReactor* reactor = nullptr;
+  auto* r = start_call<v1::DeleteSceneRequest, v1::DeleteSceneResponse>(this, "DeleteScene", in, out, &reactor);
+  if (!r) return reactor;
+  const v1::DeleteSceneRequest* req = &r->req;
   if (grpc::Status a = tokens_.authorize(ctx, Role::Admin); !a.ok()) {
     finish_unary(r, "DeleteScene", a);
-    return r;
+    return reactor;
   }
   if (grpc::Status s = check_scene_id(req->scene_id()); !s.ok()) {
     finish_unary(r, "DeleteScene", s);
-    return r;
+    return reactor;
   }
   // The id stays taken (deleting_) until the scene's files and metrics are
   // gone, so that a CreateScene of the same id cannot interleave with the
@@ -927,7 +392,7 @@ grpc::ServerUnaryReactor* Service::DeleteScene(grpc::CallbackServerContext* ctx,
   }
   if (!e) {
     finish_unary(r, "DeleteScene", no_scene(req->scene_id()));
-    return r;
+    return reactor;
   }
   Status removed;
   {
@@ -950,20 +415,22 @@ grpc::ServerUnaryReactor* Service::DeleteScene(grpc::CallbackServerContext* ctx,
     log_("scene '" + e->id + "' deleted but its files remain: " + removed.str());
     finish_unary(r, "DeleteScene",
                  grpc::Status(grpc::StatusCode::INTERNAL, "cannot remove the scene's files: " + removed.str()));
-    return r;
+    return reactor;
   }
   log_("deleted scene '" + e->id + "'");
   finish_unary(r, "DeleteScene", grpc::Status::OK);
-  return r;
+  return reactor;
 }
 
 grpc::ServerUnaryReactor* Service::ListScenes(grpc::CallbackServerContext* ctx,
-                                              const v1::ListScenesRequest* /*req*/,
-                                              v1::ListScenesResponse* resp) {
-  grpc::ServerUnaryReactor* r = ctx->DefaultReactor();
+                                              const grpc::ByteBuffer* in, grpc::ByteBuffer* out) {
+  grpc::ServerUnaryReactor* reactor = nullptr;
+  auto* r = start_call<v1::ListScenesRequest, v1::ListScenesResponse>(this, "ListScenes", in, out, &reactor);
+  if (!r) return reactor;
+  v1::ListScenesResponse* resp = &r->resp;
   if (grpc::Status a = tokens_.authorize(ctx, Role::Viewer); !a.ok()) {
     finish_unary(r, "ListScenes", a);
-    return r;
+    return reactor;
   }
   std::vector<std::shared_ptr<SceneEntry>> entries;
   {
@@ -972,41 +439,48 @@ grpc::ServerUnaryReactor* Service::ListScenes(grpc::CallbackServerContext* ctx,
   }
   for (const auto& e : entries) fill_info(*e, resp->add_scenes());
   finish_unary(r, "ListScenes", grpc::Status::OK);
-  return r;
+  return reactor;
 }
 
 grpc::ServerUnaryReactor* Service::GetSceneStats(grpc::CallbackServerContext* ctx,
-                                                 const v1::GetSceneStatsRequest* req,
-                                                 v1::SceneInfo* resp) {
-  grpc::ServerUnaryReactor* r = ctx->DefaultReactor();
+                                                 const grpc::ByteBuffer* in, grpc::ByteBuffer* out) {
+  grpc::ServerUnaryReactor* reactor = nullptr;
+  auto* r = start_call<v1::GetSceneStatsRequest, v1::SceneInfo>(this, "GetSceneStats", in, out, &reactor);
+  if (!r) return reactor;
+  const v1::GetSceneStatsRequest* req = &r->req;
+  v1::SceneInfo* resp = &r->resp;
   if (grpc::Status a = tokens_.authorize(ctx, Role::Viewer); !a.ok()) {
     finish_unary(r, "GetSceneStats", a);
-    return r;
+    return reactor;
   }
   std::shared_ptr<SceneEntry> e = find_or_finish(r, "GetSceneStats", req->scene_id());
-  if (!e) return r;
+  if (!e) return reactor;
   fill_info(*e, resp);
   finish_unary(r, "GetSceneStats", grpc::Status::OK);
-  return r;
+  return reactor;
 }
 
 grpc::ServerUnaryReactor* Service::GetPvs(grpc::CallbackServerContext* ctx,
-                                          const v1::GetPvsRequest* req, v1::GetPvsResponse* resp) {
-  grpc::ServerUnaryReactor* r = ctx->DefaultReactor();
+                                          const grpc::ByteBuffer* in, grpc::ByteBuffer* out) {
+  grpc::ServerUnaryReactor* reactor = nullptr;
+  auto* r = start_call<v1::GetPvsRequest, v1::GetPvsResponse>(this, "GetPvs", in, out, &reactor);
+  if (!r) return reactor;
+  const v1::GetPvsRequest* req = &r->req;
+  v1::GetPvsResponse* resp = &r->resp;
   if (grpc::Status a = tokens_.authorize(ctx, Role::Viewer); !a.ok()) {
     finish_unary(r, "GetPvs", a);
-    return r;
+    return reactor;
   }
   std::shared_ptr<SceneEntry> e = find_or_finish(r, "GetPvs", req->scene_id());
-  if (!e) return r;
+  if (!e) return reactor;
   Camera camera;
   if (Status s = camera_from_proto(req->camera(), req->has_camera(), &camera); !s) {
     finish_unary(r, "GetPvs", invalid(s));
-    return r;
+    return reactor;
   }
   if (Status s = validate_time("t", req->t()); !s) {
     finish_unary(r, "GetPvs", invalid(s));
-    return r;
+    return reactor;
   }
   const Clock::time_point received = Clock::now();
   pool_.submit(ctx->peer(), [this, ctx, r, e, camera, t = req->t(), resp, received](Scratch& scratch) {
@@ -1043,17 +517,17 @@ grpc::ServerUnaryReactor* Service::GetPvs(grpc::CallbackServerContext* ctx,
       e->metrics->frame(result.stats, std::chrono::duration<double>(Clock::now() - received).count());
     finish_unary(r, "GetPvs", grpc::Status::OK);
   });
-  return r;
+  return reactor;
 }
 
-grpc::ServerBidiReactor<v1::ViewRequest, v1::ViewResponse>* Service::View(
+grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>* Service::View(
     grpc::CallbackServerContext* ctx) {
-  return new ViewReactor(this, ctx);
+  return new_view_stream(this, ctx);
 }
 
-grpc::ServerBidiReactor<v1::SimulateRequest, v1::SimulateResponse>* Service::Simulate(
+grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>* Service::Simulate(
     grpc::CallbackServerContext* ctx) {
-  return new SimReactor(this, ctx);
+  return new_simulate_stream(this, ctx);
 }
 
 }  // namespace voxvis::server

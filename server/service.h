@@ -26,6 +26,7 @@
 #include <grpcpp/grpcpp.h>
 
 #include "auth.h"
+#include "calls.h"
 #include "metrics.h"
 #include "pool.h"
 #include "store.h"
@@ -89,6 +90,9 @@ struct SceneEntry {
   /// Bookkeeping after a frame computed for any viewer: counters, metrics,
   /// the scene's time and the wake list.
   void after_frame(const FrameResult& result);
+  /// Bookkeeping after a simulation batch applied at scene time `at`: the
+  /// scene's and the simulation's clocks. Called by the scene's strand.
+  void after_moves(double at);
   /// The time a viewer's frame at `t` runs at: `t`, but at most `lead`
   /// seconds beyond the simulation's clock (viewers do not own the clock).
   double view_time(double t, double lead) const;
@@ -109,6 +113,8 @@ struct ServiceConfig {
   double max_view_lead_s = 1.0;
   /// How far one simulation batch may advance a scene's clock, seconds.
   double max_time_step_s = 3600.0;
+  /// Calls in progress (streams and unary calls), server-wide.
+  int max_calls = 4096;
 };
 
 /// A stream the service can end from outside (shutdown, scene deletion).
@@ -120,7 +126,17 @@ class Stream {
   virtual void stop_if(const SceneEntry* scene, const grpc::Status& status) = 0;
 };
 
-class Service final : public v1::Visibility::CallbackService {
+/// Every method raw (calls.h says why): the generated base with each typed
+/// callback method replaced by its ByteBuffer form.
+using RawVisibilityService = v1::Visibility::WithRawCallbackMethod_CreateScene<
+    v1::Visibility::WithRawCallbackMethod_DeleteScene<
+        v1::Visibility::WithRawCallbackMethod_ListScenes<
+            v1::Visibility::WithRawCallbackMethod_GetSceneStats<
+                v1::Visibility::WithRawCallbackMethod_View<
+                    v1::Visibility::WithRawCallbackMethod_Simulate<
+                        v1::Visibility::WithRawCallbackMethod_GetPvs<v1::Visibility::Service>>>>>>>;
+
+class Service final : public RawVisibilityService {
  public:
   using Log = std::function<void(const std::string&)>;
   Service(ServiceConfig config, WorkerPool& pool, SceneStore& store, const TokenTable& tokens,
@@ -141,26 +157,20 @@ class Service final : public v1::Visibility::CallbackService {
   /// the last save.
   void save_positions();
 
-  // RPCs (see the .proto).
-  grpc::ServerUnaryReactor* CreateScene(grpc::CallbackServerContext* ctx,
-                                        const v1::CreateSceneRequest* req,
-                                        v1::SceneInfo* resp) override;
-  grpc::ServerUnaryReactor* DeleteScene(grpc::CallbackServerContext* ctx,
-                                        const v1::DeleteSceneRequest* req,
-                                        v1::DeleteSceneResponse* resp) override;
-  grpc::ServerUnaryReactor* ListScenes(grpc::CallbackServerContext* ctx,
-                                       const v1::ListScenesRequest* req,
-                                       v1::ListScenesResponse* resp) override;
-  grpc::ServerUnaryReactor* GetSceneStats(grpc::CallbackServerContext* ctx,
-                                          const v1::GetSceneStatsRequest* req,
-                                          v1::SceneInfo* resp) override;
-  grpc::ServerBidiReactor<v1::ViewRequest, v1::ViewResponse>* View(
-      grpc::CallbackServerContext* ctx) override;
-  grpc::ServerBidiReactor<v1::SimulateRequest, v1::SimulateResponse>* Simulate(
-      grpc::CallbackServerContext* ctx) override;
-  grpc::ServerUnaryReactor* GetPvs(grpc::CallbackServerContext* ctx,
-                                   const v1::GetPvsRequest* req,
-                                   v1::GetPvsResponse* resp) override;
+  // RPCs (see the .proto), raw: requests are parsed in calls.h's helpers.
+  using Raw = grpc::ByteBuffer;
+  grpc::ServerUnaryReactor* CreateScene(grpc::CallbackServerContext* ctx, const Raw* in,
+                                        Raw* out) override;
+  grpc::ServerUnaryReactor* DeleteScene(grpc::CallbackServerContext* ctx, const Raw* in,
+                                        Raw* out) override;
+  grpc::ServerUnaryReactor* ListScenes(grpc::CallbackServerContext* ctx, const Raw* in,
+                                       Raw* out) override;
+  grpc::ServerUnaryReactor* GetSceneStats(grpc::CallbackServerContext* ctx, const Raw* in,
+                                          Raw* out) override;
+  grpc::ServerBidiReactor<Raw, Raw>* View(grpc::CallbackServerContext* ctx) override;
+  grpc::ServerBidiReactor<Raw, Raw>* Simulate(grpc::CallbackServerContext* ctx) override;
+  grpc::ServerUnaryReactor* GetPvs(grpc::CallbackServerContext* ctx, const Raw* in,
+                                   Raw* out) override;
 
   // For the reactors.
   std::shared_ptr<SceneEntry> find(const std::string& id) const;
@@ -173,17 +183,23 @@ class Service final : public v1::Visibility::CallbackService {
   /// Counts a queued request answered without running: its client had gone
   /// or the server was stopping.
   void count_dropped() { dropped_.fetch_add(1, std::memory_order_relaxed); }
+  /// Takes a place among the calls in progress: OK, or RESOURCE_EXHAUSTED
+  /// when --max-calls are under way. Each OK is paired with a leave_call().
+  grpc::Status enter_call();
+  void leave_call() { calls_.fetch_sub(1, std::memory_order_relaxed); }
   std::uint64_t dropped() const { return dropped_.load(std::memory_order_relaxed); }
   /// Registers a live stream; false when the server is shutting down.
   bool add_stream(Stream* s);
   void remove_stream(Stream* s);
   /// Counts a call ended with a non-OK status.
   void count_error(const char* method, const grpc::Status& status);
+  /// Ends a unary call, counting an error.
+  void finish_unary(UnaryCall* r, const char* method, const grpc::Status& s);
 
  private:
-  void finish_unary(grpc::ServerUnaryReactor* r, const char* method, const grpc::Status& s);
-  /// The scene, or null after finishing the call with NOT_FOUND.
-  std::shared_ptr<SceneEntry> find_or_finish(grpc::ServerUnaryReactor* r, const char* method,
+  /// The scene, or null after finishing the call (INVALID_ARGUMENT for an
+  /// invalid id, NOT_FOUND).
+  std::shared_ptr<SceneEntry> find_or_finish(UnaryCall* r, const char* method,
                                              const std::string& id);
   void fill_info(const SceneEntry& e, v1::SceneInfo* out) const;
   /// Checks the budget, builds, persists (when `persist`) and registers a
@@ -211,6 +227,7 @@ class Service final : public v1::Visibility::CallbackService {
   bool shutting_down_ = false;           // Guarded by streams_mu_.
   std::atomic<bool> stopping_{false};    // shutting_down_, readable without the lock.
   std::atomic<std::uint64_t> dropped_{0};
+  std::atomic<int> calls_{0};
 };
 
 }  // namespace voxvis::server

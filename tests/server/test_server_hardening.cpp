@@ -377,5 +377,84 @@ TEST(Hardening, DynamicObjectWithoutMaxSpeedIsRefused) {
   EXPECT_THAT(s.error_message(), HasSubstr("description.objects[1].max_speed: dynamic objects need"));
 }
 
+// --- Malformed messages and structured errors ----------------------------------
+
+// Bytes that are not the request message: unary calls answered UNIMPLEMENTED
+// with an empty message, streams ended OK as if the client had half-closed,
+// and nothing was counted. Now every method answers INVALID_ARGUMENT naming
+// the message type, counted in voxvis_errors_total.
+TEST(Hardening, MalformedMessagesGetAClearAnswerAndAreCounted) {
+  ServerProcess server({"--metrics", "127.0.0.1:0"});
+  ASSERT_TRUE(server.start());
+  const Api api = server.api();
+  ASSERT_TRUE(api.create_scene_json("w", wall_scene_json()).ok());
+  const std::string garbage(8, '\xff');
+  const std::string prefix = "/voxvis.v1.Visibility/";
+  for (const char* method : {"CreateScene", "DeleteScene", "ListScenes", "GetSceneStats", "GetPvs"}) {
+    std::string response;
+    const grpc::Status s = generic_unary(api.channel(), prefix + method, garbage, &response);
+    EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << method << ": " << show(s);
+    EXPECT_THAT(s.error_message(), HasSubstr("request: not a valid voxvis.v1.")) << method;
+    EXPECT_THAT(s.error_message(), HasSubstr("(8 bytes)")) << method;
+  }
+  for (const char* method : {"View", "Simulate"}) {
+    std::vector<std::string> responses;
+    const grpc::Status s = generic_bidi(api.channel(), prefix + method, garbage, &responses);
+    EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << method << ": " << show(s);
+    EXPECT_THAT(s.error_message(), HasSubstr("request: not a valid voxvis.v1." + std::string(method) +
+                                             "Request (8 bytes)"));
+    EXPECT_TRUE(responses.empty()) << method;
+  }
+  std::smatch port;
+  const std::string log = server.log();
+  ASSERT_TRUE(std::regex_search(log, port, std::regex("metrics at http://[0-9.]+:(\\d+)/metrics")));
+  const std::string text = http_get(std::stoi(port[1].str()), "/metrics");
+  for (const char* method : {"GetPvs", "View", "Simulate", "CreateScene"}) {
+    EXPECT_THAT(text, HasSubstr("voxvis_errors_total{code=\"INVALID_ARGUMENT\",method=\"" +
+                                std::string(method) + "\"} 1"))
+        << method;
+  }
+}
+
+// Every INVALID_ARGUMENT carries a google.rpc.Status with a BadRequest naming
+// the field (voxvis.v1.ErrorStatus and BadRequest are wire-compatible).
+TEST(Hardening, InvalidArgumentCarriesABadRequestNamingTheField) {
+  ServerProcess server;
+  ASSERT_TRUE(server.start());
+  const Api api = server.api();
+  ASSERT_TRUE(api.create_scene_json("w", wall_scene_json()).ok());
+  Camera bad = wall_camera();
+  bad.fov_y_deg = 190;
+  v1::GetPvsResponse r;
+  const grpc::Status s = get_pvs(api, "w", 0.0, bad, &r);
+  ASSERT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << show(s);
+  v1::ErrorStatus details;
+  ASSERT_TRUE(details.ParseFromString(s.error_details())) << "no details";
+  EXPECT_EQ(details.code(), static_cast<int>(grpc::StatusCode::INVALID_ARGUMENT));
+  EXPECT_EQ(details.message(), s.error_message());
+  ASSERT_EQ(details.details_size(), 1);
+  EXPECT_EQ(details.details(0).type_url(), "type.googleapis.com/google.rpc.BadRequest");
+  v1::BadRequest bad_request;
+  ASSERT_TRUE(bad_request.ParseFromString(details.details(0).value()));
+  ASSERT_EQ(bad_request.field_violations_size(), 1);
+  EXPECT_EQ(bad_request.field_violations(0).field(), "camera.fov_y_deg");
+  EXPECT_THAT(bad_request.field_violations(0).description(), HasSubstr("190"));
+
+  // The same on a stream's end, and for an id refused before any echo.
+  v1::SceneInfo info;
+  const grpc::Status id = api.stats(std::string(300, 'z'), &info);
+  ASSERT_EQ(id.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  ASSERT_TRUE(details.ParseFromString(id.error_details()));
+  ASSERT_TRUE(bad_request.ParseFromString(details.details(0).value()));
+  EXPECT_EQ(bad_request.field_violations(0).field(), "scene_id");
+  SimStream sim(api, "w");
+  sim.send(1, 0.0, {{99, Vec3(1, 1, 1)}});
+  const grpc::Status st = sim.finish();
+  ASSERT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << show(st);
+  ASSERT_TRUE(details.ParseFromString(st.error_details()));
+  ASSERT_TRUE(bad_request.ParseFromString(details.details(0).value()));
+  EXPECT_EQ(bad_request.field_violations(0).field(), "batch.moves[0].id");
+}
+
 }  // namespace
 }  // namespace voxvis::servertest

@@ -1,0 +1,83 @@
+// calls.h — what every call of the Visibility service shares: the statuses it
+// answers with, and the raw-message plumbing.
+//
+// The service registers every method raw (grpc::ByteBuffer in and out) and
+// parses requests itself. With generated typed methods, gRPC 1.51 answers a
+// request that does not parse with UNIMPLEMENTED and an empty message (unary)
+// or ends the stream with OK as if the client had half-closed (streams); the
+// service could neither say what was wrong nor count it. Here such a request
+// gets INVALID_ARGUMENT "request: not a valid voxvis.v1.X (N bytes)".
+//
+// Every INVALID_ARGUMENT carries structured details: the trailer
+// grpc-status-details-bin holds a google.rpc.Status with one BadRequest field
+// violation (voxvis.v1.ErrorStatus and BadRequest, wire-compatible).
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <google/protobuf/repeated_field.h>
+#include <grpcpp/grpcpp.h>
+
+#include "voxvis/types.h"
+
+namespace voxvis::server {
+
+struct SceneEntry;
+
+/// INVALID_ARGUMENT: "field: message" as text, and a BadRequest naming the
+/// field in the details.
+grpc::Status invalid(const Status& s);
+/// INVALID_ARGUMENT for bytes that are not a `type` message.
+grpc::Status malformed(const std::string& type, std::size_t bytes);
+/// A request's scene id, checked before any message could echo it.
+grpc::Status check_scene_id(const std::string& id);
+/// NOT_FOUND for a (valid, hence short) scene id.
+grpc::Status no_scene(const std::string& id);
+/// NOT_FOUND for a scene deleted while the call was under way.
+grpc::Status deleted(const SceneEntry& e);
+grpc::Status shutting_down_status();
+
+/// Parses a raw request; false when the bytes are not a message of its type.
+bool parse_message(const grpc::ByteBuffer& in, google::protobuf::MessageLite* out);
+/// Serializes a response into `out`.
+grpc::Status serialize_message(const google::protobuf::MessageLite& m, grpc::ByteBuffer* out);
+
+/// a \ b for ascending a and b, appended to `out`.
+void difference(const std::vector<ObjectId>& a, const std::vector<ObjectId>& b,
+                google::protobuf::RepeatedField<std::uint32_t>* out);
+void add_ids(const std::vector<ObjectId>& ids, google::protobuf::RepeatedField<std::uint32_t>* out);
+
+/// A unary call's reactor. finish() serializes the response when the status
+/// is OK; the reactor deletes itself when gRPC is done with it.
+class UnaryCall : public grpc::ServerUnaryReactor {
+ public:
+  virtual void finish(const grpc::Status& status) = 0;
+  /// Runs `f` when gRPC is done with the call.
+  void on_done(std::function<void()> f) { on_done_ = std::move(f); }
+  void OnDone() override {
+    if (on_done_) on_done_();
+    delete this;
+  }
+
+ private:
+  std::function<void()> on_done_;
+};
+
+template <class Req, class Resp>
+class TypedUnaryCall final : public UnaryCall {
+ public:
+  explicit TypedUnaryCall(grpc::ByteBuffer* out) : out_(out) {}
+  Req req;
+  Resp resp;
+  void finish(const grpc::Status& status) override {
+    Finish(status.ok() ? serialize_message(resp, out_) : status);
+  }
+
+ private:
+  grpc::ByteBuffer* out_;
+};
+
+}  // namespace voxvis::server

@@ -1,0 +1,586 @@
+// streams.cpp — the two streaming calls, View (a viewer's frames) and
+// Simulate (a backend's moves and the scene's wake list), as callback
+// reactors. Their shared base handles admission, raw messages, stopping and
+// lifetime; service.cpp owns the scenes they work on.
+#include "streams.h"
+
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <utility>
+#include <vector>
+
+#include "calls.h"
+#include "convert.h"
+
+namespace voxvis::server {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+}  // namespace
+
+// ---------------------------------------------------------------------------
+// What both streams share: admission (token, registration for shutdown), raw
+// messages parsed here (bytes that are not a Req end the stream with
+// INVALID_ARGUMENT), the stop-then-finish protocol, and a lifetime that
+// outlasts gRPC's OnDone until the last pool job referencing the stream has
+// ended. `Self` provides on_read_locked() (a message or the client's
+// half-close), advance_locked() (writes, reads, Finish), on_stop_locked() and
+// on_done() (hooks), and on_release() (called once, just before deletion).
+
+template <class Req, class Resp, class Self>
+class StreamReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>,
+                      public Stream {
+ public:
+  void OnReadDone(bool ok) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    grpc::Status parsed;
+    if (ok && !parse_message(in_, &read_))
+      parsed = malformed(Req::descriptor()->full_name(), in_.Length());
+    self().on_read_locked(ok, parsed);
+  }
+
+  void stop_if(const SceneEntry* scene, const grpc::Status& status) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (scene && entry_.get() != scene) return;
+    stop_locked(status);
+    self().advance_locked();
+  }
+
+  void OnWriteDone(bool ok) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    writing_ = false;
+    if (!ok) stop_locked(grpc::Status(grpc::StatusCode::CANCELLED, "client gone"));
+    self().advance_locked();
+  }
+
+  void OnCancel() override {
+    std::lock_guard<std::mutex> lock(mu_);
+    stop_locked(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled"));
+    self().advance_locked();
+  }
+
+  void OnDone() override {
+    if (registered_) svc_->remove_stream(this);
+    if (in_call_) svc_->leave_call();
+    self().on_done();
+    bool del;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      done_ = true;
+      del = jobs_ == 0;
+    }
+    if (del) release();
+  }
+
+ protected:
+  StreamReactor(Service* svc, const char* method) : svc_(svc), method_(method) {}
+
+  /// Checks the call's token and registers the stream. Call from the
+  /// derived constructor without holding mu_ (the service's stream lock comes
+  /// first in the lock order).
+  grpc::Status admit(grpc::CallbackServerContext* ctx, Role role) {
+    client_ = ctx->peer();
+    const grpc::Status auth = svc_->tokens().authorize(ctx, role);
+    registered_ = svc_->add_stream(this);
+    if (!auth.ok()) return auth;
+    if (!registered_) return shutting_down_status();
+    const grpc::Status busy = svc_->enter_call();
+    in_call_ = busy.ok();
+    return busy;
+  }
+
+  void stop_locked(const grpc::Status& status) {
+    if (!stopping_) {
+      stopping_ = true;
+      stop_status_ = status;
+    }
+    self().on_stop_locked();
+  }
+
+  /// Finish with the stop status, or OK when the client closed.
+  void finish_locked() {
+    finished_ = true;
+    const grpc::Status s = stopping_ ? stop_status_ : grpc::Status::OK;
+    if (!s.ok() && s.error_code() != grpc::StatusCode::CANCELLED) svc_->count_error(method_, s);
+    this->Finish(s);
+  }
+
+  /// Counts the end of a pool job; true when the stream is to be released.
+  bool end_job_locked() {
+    --jobs_;
+    return done_ && jobs_ == 0;
+  }
+
+  void release() {
+    self().on_release();
+    delete &self();
+  }
+
+  void start_read() { StartRead(&in_); }
+
+  /// Writes write_ (one write in flight: the caller checked writing_).
+  void start_write_locked() {
+    if (grpc::Status s = serialize_message(write_, &out_); !s.ok()) {
+      stop_locked(s);
+      return;
+    }
+    writing_ = true;
+    StartWrite(&out_);
+  }
+
+  Service* svc_;
+  const char* method_;
+  std::string client_;       // The connection's peer: the pool's admission key. Set in admit.
+  bool registered_ = false;  // Written before any reaction can run.
+  bool in_call_ = false;     // Holds a place among the calls in progress; as registered_.
+  std::mutex mu_;
+  std::shared_ptr<SceneEntry> entry_;  // Guarded by mu_; set by the first message.
+  bool writing_ = false, stopping_ = false, finished_ = false, done_ = false;  // Guarded by mu_.
+  grpc::Status stop_status_;           // Guarded by mu_.
+  int jobs_ = 0;                       // Guarded by mu_: pool jobs referencing this.
+  Req read_;                           // The last message read.
+  Resp write_;                         // The message being written.
+
+ private:
+  grpc::ByteBuffer in_;   // Owned by the outstanding read.
+  grpc::ByteBuffer out_;  // Owned by the outstanding write.
+  Self& self() { return static_cast<Self&>(*this); }
+};
+
+// ---------------------------------------------------------------------------
+// View: one viewer's frames.
+//
+// State machine (all under mu_): a read is always outstanding until the
+// client closes or the stream stops; the newest unanswered request waits in
+// pending_ (an older one there is skipped); one frame computes at a time, its
+// answer waits in ready_ while a write is in flight; a new frame is computed
+// only when no answer is waiting, so a viewer that does not read costs one
+// request, one answer and one write in flight. Deltas are taken at write time
+// against the last PVS written, so skipped frames never break them.
+
+class ViewReactor final
+    : public StreamReactor<v1::ViewRequest, v1::ViewResponse, ViewReactor> {
+  friend class StreamReactor<v1::ViewRequest, v1::ViewResponse, ViewReactor>;
+
+ public:
+  ViewReactor(Service* svc, grpc::CallbackServerContext* ctx) : StreamReactor(svc, "View") {
+    const grpc::Status admitted = admit(ctx, Role::Viewer);
+    std::lock_guard<std::mutex> lock(mu_);
+    if (admitted.ok()) {
+      start_read();
+    } else {
+      stop_locked(admitted);
+    }
+    advance_locked();
+  }
+
+ private:
+  void on_read_locked(bool ok, const grpc::Status& parsed) {
+    if (!ok) {
+      eof_ = true;
+    } else if (!stopping_) {
+      const grpc::Status s = parsed.ok() ? accept_locked() : parsed;
+      if (s.ok()) {
+        start_read();
+      } else {
+        stop_locked(s);
+      }
+    }
+    advance_locked();
+  }
+
+  struct Pending {
+    std::uint64_t frame = 0;
+    double t = 0.0;
+    Camera camera;
+    Clock::time_point received;
+  };
+  struct Ready {
+    std::uint64_t frame = 0;
+    double t = 0.0;
+    FrameResult result;
+    Clock::time_point received;
+    std::uint32_t skipped = 0;
+  };
+
+  grpc::Status accept_locked() {
+    const v1::ViewRequest& r = read_;
+    if (!entry_) {
+      if (r.scene_id().empty())
+        return invalid(Status::Error("scene_id", "the first message of a stream must name the scene"));
+      if (grpc::Status s = check_scene_id(r.scene_id()); !s.ok()) return s;
+      if (r.encoding() != v1::PVS_FULL && r.encoding() != v1::PVS_DELTA)
+        return invalid(Status::Error("encoding", "unknown value " + std::to_string(r.encoding())));
+      // entry_ set means counted as a viewer (released in on_release).
+      entry_ = svc_->find(r.scene_id());
+      if (!entry_) return no_scene(r.scene_id());
+      encoding_ = r.encoding();
+      entry_->viewers.fetch_add(1, std::memory_order_relaxed);
+      if (entry_->metrics) entry_->metrics->viewers(+1);
+    } else if (!r.scene_id().empty() && r.scene_id() != entry_->id) {
+      return invalid(Status::Error("scene_id", "cannot change within a stream (stream is on '" +
+                                                   entry_->id + "')"));
+    }
+    if (have_frame_ && r.frame() <= last_frame_)
+      return invalid(Status::Error("frame", "must increase along a stream: " +
+                                                std::to_string(r.frame()) + " after " +
+                                                std::to_string(last_frame_)));
+    if (Status s = validate_time("t", r.t()); !s) return invalid(s);
+    if (have_frame_ && r.t() < last_t_)
+      return invalid(Status::Error("t", "must not decrease along a stream"));
+    Pending p;
+    if (Status s = camera_from_proto(r.camera(), r.has_camera(), &p.camera); !s) return invalid(s);
+    have_frame_ = true;
+    last_frame_ = r.frame();
+    last_t_ = r.t();
+    p.frame = r.frame();
+    p.t = r.t();
+    p.received = Clock::now();
+    if (pending_) ++skipped_;
+    pending_ = p;
+    return grpc::Status::OK;
+  }
+
+  void on_stop_locked() { pending_.reset(); }
+  void on_done() {}
+
+  void advance_locked() {
+    if (finished_) return;
+    if (!writing_ && ready_) write_locked();
+    if (!stopping_ && !computing_ && pending_ && !ready_) {
+      computing_ = true;
+      ++jobs_;
+      Pending p = *pending_;
+      pending_.reset();
+      const std::uint32_t skipped = skipped_;
+      skipped_ = 0;
+      // Frames of one scene run in parallel (the Scene synchronizes itself);
+      // this stream's frames one at a time.
+      svc_->pool().submit(client_, [this, entry = entry_, p, skipped](Scratch& scratch) {
+        compute(*entry, p, skipped, scratch);
+      });
+    }
+    const bool idle = !writing_ && !computing_ && !ready_;
+    if (idle && (stopping_ || (eof_ && !pending_))) finish_locked();
+  }
+
+  // Pool job.
+  void compute(SceneEntry& e, const Pending& p, std::uint32_t skipped, Scratch& scratch) {
+    std::optional<Ready> ready;
+    grpc::Status error;
+    bool stopped;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      stopped = stopping_;
+    }
+    if (stopped) {
+      // Cancelled, shut down or deleted while queued: nobody waits for it.
+      svc_->count_dropped();
+    } else if (e.deleted.load()) {
+      error = deleted(e);
+    } else {
+      Scene& scene = *e.scene;
+      if (!viewer_added_) {
+        viewer_ = scene.add_viewer();
+        viewer_added_ = true;
+      }
+      ready.emplace();
+      ready->frame = p.frame;
+      ready->received = p.received;
+      ready->skipped = skipped;
+      // The scene's clock is shared: a time behind it is taken as it, one
+      // too far beyond the simulation's as its limit.
+      const double t = e.view_time(p.t, svc_->config().max_view_lead_s);
+      Status s = scene.frame(viewer_, p.camera, t, scratch, &ready->result, Scene::Clock::Latest);
+      ready->t = ready->result.t;
+      if (!s) {
+        error = invalid(s);
+        ready.reset();
+      } else {
+        e.after_frame(ready->result);
+      }
+    }
+    bool del;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      computing_ = false;
+      if (ready) {
+        ready_ = std::move(ready);
+      } else if (!error.ok()) {
+        stop_locked(error);
+      }
+      advance_locked();
+      del = end_job_locked();
+    }
+    if (del) release();
+  }
+
+  void write_locked() {
+    Ready& r = *ready_;
+    write_.Clear();
+    write_.set_frame(r.frame);
+    write_.set_t(r.t);
+    write_.set_encoding(encoding_);
+    std::vector<ObjectId>& pvs = r.result.pvs;
+    if (encoding_ == v1::PVS_DELTA) {
+      difference(pvs, last_sent_, write_.mutable_added());
+      difference(last_sent_, pvs, write_.mutable_removed());
+    } else {
+      add_ids(pvs, write_.mutable_pvs());
+    }
+    add_ids(r.result.wake, write_.mutable_wake());
+    stats_to_proto(r.result.stats, write_.mutable_stats());
+    write_.set_frames_skipped(r.skipped);
+    const double latency = std::chrono::duration<double>(Clock::now() - r.received).count();
+    write_.set_server_us(latency * 1e6);
+    if (entry_->metrics) {
+      entry_->metrics->frame(r.result.stats, latency);
+      if (r.skipped) entry_->metrics->skipped(r.skipped);
+    }
+    last_sent_ = std::move(pvs);
+    ready_.reset();
+    start_write_locked();
+  }
+
+  void on_release() {
+    if (!entry_) return;
+    entry_->viewers.fetch_sub(1, std::memory_order_relaxed);
+    if (entry_->metrics) entry_->metrics->viewers(-1);
+    if (viewer_added_) {
+      // The viewer's claims on its last PVS go with it.
+      svc_->pool().submit(client_, [entry = entry_, v = viewer_](Scratch&) {
+        if (!entry->deleted.load()) entry->scene->remove_viewer(v);
+      });
+    }
+  }
+
+  v1::PvsEncoding encoding_ = v1::PVS_FULL;
+  bool have_frame_ = false;
+  std::uint64_t last_frame_ = 0;
+  double last_t_ = 0.0;
+  std::optional<Pending> pending_;       // Guarded by mu_.
+  std::uint32_t skipped_ = 0;            // Guarded by mu_.
+  std::optional<Ready> ready_;           // Guarded by mu_.
+  std::vector<ObjectId> last_sent_;      // Guarded by mu_: PVS of the last answer written.
+  bool computing_ = false, eof_ = false;  // Guarded by mu_.
+  // Touched by this stream's jobs only, one at a time (handed over through mu_).
+  bool viewer_added_ = false;
+  ViewerId viewer_ = 0;
+};
+
+// ---------------------------------------------------------------------------
+// Simulate: one backend's moves and the scene's wake list.
+//
+// One batch is applied at a time, and the next message is read only when the
+// previous acknowledgement has been handed to a write, so a backend that does
+// not read its answers is slowed down instead of queueing acknowledgements.
+// Wake lists are latest-wins: a delta is taken at write time against the
+// last list written.
+
+class SimReactor final
+    : public StreamReactor<v1::SimulateRequest, v1::SimulateResponse, SimReactor> {
+  friend class StreamReactor<v1::SimulateRequest, v1::SimulateResponse, SimReactor>;
+
+ public:
+  SimReactor(Service* svc, grpc::CallbackServerContext* ctx) : StreamReactor(svc, "Simulate") {
+    sink_ = std::make_shared<WakeSink>();
+    sink_->reactor = this;
+    const grpc::Status admitted = admit(ctx, Role::Simulation);
+    std::lock_guard<std::mutex> lock(mu_);
+    if (!admitted.ok()) stop_locked(admitted);
+    advance_locked();  // Starts the first read.
+  }
+
+  void on_wake(std::shared_ptr<const WakeSnapshot> snap) {
+    std::lock_guard<std::mutex> lock(mu_);
+    wake_latest_ = std::move(snap);
+    advance_locked();
+  }
+
+ private:
+  void on_read_locked(bool ok, const grpc::Status& parsed) {
+    reading_ = false;
+    if (!ok) {
+      eof_ = true;
+    } else if (!stopping_) {
+      const grpc::Status s = parsed.ok() ? accept_locked() : parsed;
+      if (!s.ok()) stop_locked(s);
+    }
+    advance_locked();
+  }
+
+  void on_done() {
+    // From here on the scene delivers nothing to this stream.
+    std::lock_guard<std::mutex> lock(sink_->mu);
+    sink_->reactor = nullptr;
+  }
+  void on_stop_locked() {}
+
+  grpc::Status accept_locked() {
+    const v1::SimulateRequest& r = read_;
+    if (!entry_) {
+      if (r.scene_id().empty())
+        return invalid(Status::Error("scene_id", "the first message of a stream must name the scene"));
+      if (grpc::Status s = check_scene_id(r.scene_id()); !s.ok()) return s;
+      entry_ = svc_->find(r.scene_id());
+      if (!entry_) return no_scene(r.scene_id());
+      entry_->simulators.fetch_add(1, std::memory_order_relaxed);
+      ++jobs_;
+      entry_->strand->post([this, entry = entry_, sink = sink_](Scratch&) {
+        if (!entry->deleted.load()) entry->subscribe(sink);
+        job_done(std::nullopt, grpc::Status::OK);
+      });
+    } else if (!r.scene_id().empty() && r.scene_id() != entry_->id) {
+      return invalid(Status::Error("scene_id", "cannot change within a stream (stream is on '" +
+                                                   entry_->id + "')"));
+    }
+    if (!r.has_batch()) return grpc::Status::OK;
+    const v1::MoveBatch& b = r.batch();
+    if (Status s = validate_time("batch.t", b.t()); !s) return invalid(s);
+    if (have_t_ && b.t() < last_t_)
+      return invalid(Status::Error("batch.t", "must not decrease along a stream"));
+    std::vector<Move> moves;
+    if (Status s = moves_from_proto(b, &moves); !s) return invalid(s);
+    have_t_ = true;
+    last_t_ = b.t();
+    applying_ = true;
+    ++jobs_;
+    entry_->strand->post([this, entry = entry_, seq = b.seq(), t = b.t(),
+                          moves = std::move(moves)](Scratch&) {
+      apply(*entry, seq, t, moves);
+    });
+    return grpc::Status::OK;
+  }
+
+  // Job of the scene's strand.
+  void apply(SceneEntry& e, std::uint64_t seq, double t, const std::vector<Move>& moves) {
+    bool stopped;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      stopped = stopping_;
+    }
+    if (stopped) {
+      // Nobody will read the acknowledgement: the batch is not applied.
+      svc_->count_dropped();
+      job_done(std::nullopt, grpc::Status(grpc::StatusCode::CANCELLED, "stream stopped"));
+      return;
+    }
+    if (e.deleted.load()) {
+      job_done(std::nullopt, deleted(e));
+      return;
+    }
+    // One batch may advance the clock by a bounded step; the first one on a
+    // scene adopts the backend's epoch.
+    const double step_limit = svc_->config().max_time_step_s;
+    const double from = e.sim_time.load(std::memory_order_relaxed);
+    if (e.sim_clock_set && t - from > step_limit) {
+      job_done(std::nullopt,
+               invalid(Status::Error("batch.t", num(t) + " is " + num(t - from) +
+                                                    " s beyond the scene's clock (" + num(from) +
+                                                    "); one batch may advance it by at most " +
+                                                    num(step_limit) + " s")));
+      return;
+    }
+    Scene& scene = *e.scene;
+    MoveReport report;
+    Status s = scene.apply_moves(t, moves, &report, Scene::Clock::Latest);
+    const double at = report.t;
+    if (!s) {
+      job_done(std::nullopt, invalid(Status::Error("batch." + s.field, s.message)));
+      return;
+    }
+    e.moves_applied.fetch_add(report.applied, std::memory_order_relaxed);
+    e.after_moves(at);
+    if (report.applied) e.positions_dirty.store(true, std::memory_order_relaxed);
+    if (e.metrics) e.metrics->moves(report.applied);
+    e.refresh_wake();
+    v1::MoveAck ack;
+    ack.set_seq(seq);
+    ack.set_applied(report.applied);
+    for (ObjectId id : report.too_fast) ack.add_too_fast(id);
+    ack.set_t(at);
+    job_done(std::move(ack), grpc::Status::OK);
+  }
+
+  void job_done(std::optional<v1::MoveAck> ack, const grpc::Status& status) {
+    bool del;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      if (ack) {
+        applying_ = false;
+        ack_ = std::move(ack);
+      } else if (!status.ok()) {
+        applying_ = false;
+        stop_locked(status);
+      }
+      advance_locked();
+      del = end_job_locked();
+    }
+    if (del) release();
+  }
+
+  void advance_locked() {
+    if (finished_) return;
+    if (!writing_) {
+      if (ack_) {
+        write_.Clear();
+        *write_.mutable_ack() = std::move(*ack_);
+        ack_.reset();
+        start_write_locked();
+      } else if (wake_latest_ && wake_latest_ != wake_sent_ && !stopping_) {
+        write_.Clear();
+        v1::WakeList* w = write_.mutable_wake();
+        w->set_version(wake_latest_->version);
+        w->set_size(static_cast<std::uint32_t>(wake_latest_->ids.size()));
+        if (!wake_sent_) {
+          w->set_full(true);
+          add_ids(wake_latest_->ids, w->mutable_ids());
+        } else {
+          difference(wake_latest_->ids, wake_sent_->ids, w->mutable_woken());
+          difference(wake_sent_->ids, wake_latest_->ids, w->mutable_slept());
+        }
+        wake_sent_ = wake_latest_;
+        start_write_locked();
+      }
+    }
+    if (!reading_ && !eof_ && !stopping_ && !applying_ && !ack_) {
+      reading_ = true;
+      start_read();
+    }
+    const bool idle = !writing_ && !applying_ && !ack_;
+    if (idle && (stopping_ || eof_)) finish_locked();
+  }
+
+  void on_release() {
+    if (!entry_) return;
+    entry_->simulators.fetch_sub(1, std::memory_order_relaxed);
+    entry_->unsubscribe(sink_);
+  }
+
+  std::shared_ptr<WakeSink> sink_;
+  bool have_t_ = false;
+  double last_t_ = 0.0;
+  std::optional<v1::MoveAck> ack_;     // Guarded by mu_: acknowledgement waiting to be written.
+  std::shared_ptr<const WakeSnapshot> wake_latest_, wake_sent_;  // Guarded by mu_.
+  bool reading_ = false, applying_ = false, eof_ = false;  // Guarded by mu_.
+};
+
+void deliver_wake(SimReactor* r, std::shared_ptr<const WakeSnapshot> snap) {
+  r->on_wake(std::move(snap));
+}
+
+grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>* new_view_stream(
+    Service* svc, grpc::CallbackServerContext* ctx) {
+  return new ViewReactor(svc, ctx);
+}
+
+grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>* new_simulate_stream(
+    Service* svc, grpc::CallbackServerContext* ctx) {
+  return new SimReactor(svc, ctx);
+}
+
+}  // namespace voxvis::server

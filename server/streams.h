@@ -1,0 +1,21 @@
+// streams.h — the reactors of the View and Simulate streams (streams.cpp).
+#pragma once
+
+#include <memory>
+
+#include <grpcpp/grpcpp.h>
+
+#include "service.h"
+
+namespace voxvis::server {
+
+/// A View stream: one viewer's frames (proto: Visibility.View).
+grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>* new_view_stream(
+    Service* svc, grpc::CallbackServerContext* ctx);
+/// A Simulate stream: a backend's moves and the wake list (proto: Visibility.Simulate).
+grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>* new_simulate_stream(
+    Service* svc, grpc::CallbackServerContext* ctx);
+/// Hands a Simulate stream the scene's newest wake list.
+void deliver_wake(SimReactor* r, std::shared_ptr<const WakeSnapshot> snap);
+
+}  // namespace voxvis::server
