@@ -540,15 +540,24 @@ void ServerProcess::kill9() {
   if (child_) child_->kill9();
 }
 
-long ServerProcess::rss_kib() const {
-  if (pid() <= 0) return -1;
-  std::ifstream in("/proc/" + std::to_string(pid()) + "/status");
+namespace {
+
+/// A "Name:   123 kB" line of /proc/PID/status, KiB; -1 when absent.
+long proc_status_kib(pid_t pid, const std::string& name) {
+  if (pid <= 0) return -1;
+  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
   std::string line;
   while (std::getline(in, line)) {
-    if (line.rfind("VmRSS:", 0) == 0) return std::atol(line.c_str() + 6);
+    if (line.rfind(name + ":", 0) == 0) return std::atol(line.c_str() + name.size() + 1);
   }
   return -1;
 }
+
+}  // namespace
+
+long ServerProcess::peak_rss_kib() const { return proc_status_kib(pid(), "VmHWM"); }
+
+long ServerProcess::rss_kib() const { return proc_status_kib(pid(), "VmRSS"); }
 
 std::string ServerProcess::log() const { return slurp(dir_ + "/server.log"); }
 

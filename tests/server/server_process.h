@@ -307,6 +307,8 @@ class ServerProcess {
   void kill9();
   /// The server's resident set size (VmRSS), KiB; -1 when unreadable.
   long rss_kib() const;
+  /// The server's peak resident set size so far (VmHWM), KiB; -1 when unreadable.
+  long peak_rss_kib() const;
   /// The server's stderr so far (all runs).
   std::string log() const;
 
