@@ -76,7 +76,12 @@ int run_view(const ViewArgs& args) {
     ++line_no;
     if (blank(line)) continue;
     if (!parse_frame_line(line, args.frames, line_no, &frame, &error)) return fail(report(error));
-    if (!frame.moves.empty()) {
+    // Once the file has moved something, every frame's time goes through the
+    // simulation stream (an empty batch when it has no moves): the scene's
+    // clock follows its simulation, and a viewer runs at most
+    // --max-view-lead beyond it, so frames without moves would otherwise be
+    // computed at an earlier time than `replay` uses.
+    if (!frame.moves.empty() || sim != nullptr) {
       if (sim == nullptr) {
         sim = std::make_unique<client::SimulationSession>(*client);
         if (!sim->open(args.scene)) {

@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
@@ -560,6 +561,23 @@ long ServerProcess::peak_rss_kib() const { return proc_status_kib(pid(), "VmHWM"
 long ServerProcess::rss_kib() const { return proc_status_kib(pid(), "VmRSS"); }
 
 std::string ServerProcess::log() const { return slurp(dir_ + "/server.log"); }
+
+int ServerProcess::metrics_port() const {
+  const std::string text = log();
+  const std::string marker = "/metrics\n";
+  const std::size_t at = text.find("metrics at http://");
+  if (at == std::string::npos) return 0;
+  const std::size_t end = text.find(marker, at);
+  return end == std::string::npos ? 0 : static_cast<int>(number_before(text.substr(at), marker));
+}
+
+long number_before(const std::string& text, const std::string& marker) {
+  const std::size_t end = text.find(marker);
+  if (end == std::string::npos) return -1;
+  std::size_t begin = end;
+  while (begin > 0 && std::isdigit(static_cast<unsigned char>(text[begin - 1]))) --begin;
+  return begin == end ? -1 : std::stol(text.substr(begin, end - begin));
+}
 
 // ---------------------------------------------------------------------------
 // PvsFlood and http_get

@@ -260,6 +260,10 @@ class PvsFlood {
 /// included, or a line saying what failed.
 std::string http_get(int port, const std::string& path);
 
+/// The whole number that ends just before the first `marker` in `text`
+/// ("12 queued requests dropped" with marker " queued"); -1 when there is none.
+long number_before(const std::string& text, const std::string& marker);
+
 // ---------------------------------------------------------------------------
 // The server process
 
@@ -311,6 +315,9 @@ class ServerProcess {
   long peak_rss_kib() const;
   /// The server's stderr so far (all runs).
   std::string log() const;
+  /// The port of the metrics endpoint the log announced (with --metrics
+  /// HOST:0); 0 when it has not.
+  int metrics_port() const;
 
  private:
   std::vector<std::string> extra_args_;

@@ -101,6 +101,42 @@ TEST(ServerCli, ViewMatchesReplay) {
 // server and share the scene's clock; every stream must be answered without
 // error (a frame racing another's clock once failed with "time goes
 // backwards"), and the report must count what was answered.
+// The scene's clock follows its simulation and a viewer may lead it by at
+// most --max-view-lead: `voxvis view` passes every frame's time through the
+// simulation stream once the file has moved something, so frames without
+// moves, long after the last one, still match `replay`.
+TEST(ServerCli, ViewMatchesReplayWhenMovesStop) {
+  ServerProcess server;
+  const std::string scene = server.path("wall.json");
+  spit(scene, wall_scene_json());
+  // One move in the first frame, then 4 s of frames without moves: the
+  // hidden sphere's TBV expires and renews along the way.
+  std::string frames_text;
+  for (int i = 0; i < 120; ++i) {
+    const double t = i / 30.0;
+    frames_text += "{\"t\": " + std::to_string(t) +
+                   ", \"eye\": [10, 10, 1], \"dir\": [0, 0, 1], \"up\": [0, 1, 0], "
+                   "\"fov_y_deg\": 60, \"aspect\": 1, \"near\": 0.05, \"far\": 1000" +
+                   (i == 0 ? ", \"moves\": [{\"id\": 2, \"center\": [10, 10, 15]}]" : "") + "}\n";
+  }
+  const std::string frames = server.path("frames.jsonl");
+  spit(frames, frames_text);
+  server.extra_args() = {"--scene", "wall=" + scene};
+  ASSERT_TRUE(server.start());
+  const std::string replay_out = server.path("replay.jsonl"), view_out = server.path("view.jsonl");
+  ProcessResult r = run_program({VOXVIS_CLI, "replay", "--scene", scene, "--frames", frames,
+                                 "--out", replay_out, "-q"},
+                                server.dir());
+  ASSERT_EQ(r.status, 0) << r.err;
+  ASSERT_NE(slurp(replay_out).find("\"tbvs_expired\":1"), std::string::npos)
+      << "the walk should renew the TBV";
+  r = run_program({VOXVIS_CLI, "view", "--server", server.address(), "--scene", "wall", "--frames",
+                   frames, "--out", view_out, "-q"},
+                  server.dir());
+  ASSERT_EQ(r.status, 0) << r.err;
+  expect_same_output(slurp(replay_out), slurp(view_out), "voxvis view");
+}
+
 TEST(ServerCli, LoadgenManyViewersOfOneScene) {
   const std::string examples = std::string(VOXVIS_SOURCE_DIR) + "/examples/paper";
   ServerProcess server;
