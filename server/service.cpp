@@ -487,7 +487,7 @@ grpc::ServerUnaryReactor* Service::GetPvs(grpc::CallbackServerContext* ctx,
     // Work nobody waits for any more is answered without running.
     if (ctx->IsCancelled()) {
       count_dropped();
-      r->Finish(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled"));
+      r->finish(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled"));
       return;
     }
     if (shutting_down()) {

@@ -122,6 +122,25 @@ class StreamReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::Byt
 
   void start_read() { StartRead(&in_); }
 
+  /// The scene id of a message: the first must name a valid one, later ones
+  /// may repeat it or leave it empty.
+  grpc::Status check_scene_field_locked(const std::string& id) const {
+    if (entry_) {
+      if (id.empty() || id == entry_->id) return grpc::Status::OK;
+      return invalid(Status::Error("scene_id", "cannot change within a stream (stream is on '" +
+                                                   entry_->id + "')"));
+    }
+    if (id.empty())
+      return invalid(Status::Error("scene_id", "the first message of a stream must name the scene"));
+    return check_scene_id(id);
+  }
+
+  /// Makes the first message's scene the stream's.
+  grpc::Status find_scene_locked(const std::string& id) {
+    entry_ = svc_->find(id);
+    return entry_ ? grpc::Status::OK : no_scene(id);
+  }
+
   /// Writes write_ (one write in flight: the caller checked writing_).
   void start_write_locked() {
     if (grpc::Status s = serialize_message(write_, &out_); !s.ok()) {
@@ -209,21 +228,15 @@ class ViewReactor final
 
   grpc::Status accept_locked() {
     const v1::ViewRequest& r = read_;
+    if (grpc::Status s = check_scene_field_locked(r.scene_id()); !s.ok()) return s;
     if (!entry_) {
-      if (r.scene_id().empty())
-        return invalid(Status::Error("scene_id", "the first message of a stream must name the scene"));
-      if (grpc::Status s = check_scene_id(r.scene_id()); !s.ok()) return s;
       if (r.encoding() != v1::PVS_FULL && r.encoding() != v1::PVS_DELTA)
         return invalid(Status::Error("encoding", "unknown value " + std::to_string(r.encoding())));
       // entry_ set means counted as a viewer (released in on_release).
-      entry_ = svc_->find(r.scene_id());
-      if (!entry_) return no_scene(r.scene_id());
+      if (grpc::Status s = find_scene_locked(r.scene_id()); !s.ok()) return s;
       encoding_ = r.encoding();
       entry_->viewers.fetch_add(1, std::memory_order_relaxed);
       if (entry_->metrics) entry_->metrics->viewers(+1);
-    } else if (!r.scene_id().empty() && r.scene_id() != entry_->id) {
-      return invalid(Status::Error("scene_id", "cannot change within a stream (stream is on '" +
-                                                   entry_->id + "')"));
     }
     if (have_frame_ && r.frame() <= last_frame_)
       return invalid(Status::Error("frame", "must increase along a stream: " +
@@ -422,21 +435,15 @@ class SimReactor final
 
   grpc::Status accept_locked() {
     const v1::SimulateRequest& r = read_;
+    if (grpc::Status s = check_scene_field_locked(r.scene_id()); !s.ok()) return s;
     if (!entry_) {
-      if (r.scene_id().empty())
-        return invalid(Status::Error("scene_id", "the first message of a stream must name the scene"));
-      if (grpc::Status s = check_scene_id(r.scene_id()); !s.ok()) return s;
-      entry_ = svc_->find(r.scene_id());
-      if (!entry_) return no_scene(r.scene_id());
+      if (grpc::Status s = find_scene_locked(r.scene_id()); !s.ok()) return s;
       entry_->simulators.fetch_add(1, std::memory_order_relaxed);
       ++jobs_;
       entry_->strand->post([this, entry = entry_, sink = sink_](Scratch&) {
         if (!entry->deleted.load()) entry->subscribe(sink);
         job_done(std::nullopt, grpc::Status::OK);
       });
-    } else if (!r.scene_id().empty() && r.scene_id() != entry_->id) {
-      return invalid(Status::Error("scene_id", "cannot change within a stream (stream is on '" +
-                                                   entry_->id + "')"));
     }
     if (!r.has_batch()) return grpc::Status::OK;
     const v1::MoveBatch& b = r.batch();

@@ -579,6 +579,16 @@ long number_before(const std::string& text, const std::string& marker) {
   return begin == end ? -1 : std::stol(text.substr(begin, end - begin));
 }
 
+::testing::AssertionResult make_test_certificate(const std::string& cert, const std::string& key,
+                                                 const std::string& dir) {
+  const ProcessResult made = run_program(
+      {"/usr/bin/openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "2", "-subj",
+       "/CN=voxvis.test", "-addext", "subjectAltName=DNS:voxvis.test", "-keyout", key, "-out", cert},
+      dir);
+  if (made.status == 0) return ::testing::AssertionSuccess();
+  return ::testing::AssertionFailure() << "openssl failed: " << made.err;
+}
+
 // ---------------------------------------------------------------------------
 // PvsFlood and http_get
 

@@ -76,6 +76,11 @@ struct ProcessResult {
 ProcessResult run_program(const std::vector<std::string>& argv, const std::string& dir,
                           Seconds timeout = Seconds(120));
 
+/// Makes a self-signed certificate for the name "voxvis.test" (its subject and
+/// subjectAltName) with openssl: PEM files `cert` and `key`.
+::testing::AssertionResult make_test_certificate(const std::string& cert, const std::string& key,
+                                                 const std::string& dir);
+
 /// A child process started with posix_spawn; killed in the destructor.
 class ChildProcess {
  public:

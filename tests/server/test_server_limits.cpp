@@ -54,11 +54,7 @@ TEST(ServerLimits, BufferQuotaBoundsAnOversizedRequest) {
 TEST(ServerLimits, WithTlsUnauthenticatedCallsAreRefusedBeforeTheirMessageIsRead) {
   ServerProcess server;
   const std::string cert = server.path("cert.pem"), key = server.path("key.pem");
-  const ProcessResult made = run_program(
-      {"/usr/bin/openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "2", "-subj",
-       "/CN=voxvis.test", "-addext", "subjectAltName=DNS:voxvis.test", "-keyout", key, "-out", cert},
-      server.dir());
-  ASSERT_EQ(made.status, 0) << made.err;
+  ASSERT_TRUE(make_test_certificate(cert, key, server.dir()));
   const std::string tokens = server.path("tokens");
   spit(tokens, "admin admin-token-0123456789abcdef\nviewer viewer-token-0123456789abcdef\n");
   server.extra_args() = {"--tls-cert", cert, "--tls-key", key, "--tokens", tokens};
