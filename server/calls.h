@@ -13,6 +13,7 @@
 // violation (voxvis.v1.ErrorStatus and BadRequest, wire-compatible).
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -55,15 +56,22 @@ void add_ids(const std::vector<ObjectId>& ids, google::protobuf::RepeatedField<s
 class UnaryCall : public grpc::ServerUnaryReactor {
  public:
   virtual void finish(const grpc::Status& status) = 0;
-  /// Runs `f` when gRPC is done with the call.
-  void on_done(std::function<void()> f) { on_done_ = std::move(f); }
+  /// Runs `f` once, when the call is cancelled (its client gone, its deadline
+  /// passed) or when gRPC is done with it, whichever comes first: a call
+  /// nobody waits for stops counting then, even while its job is queued.
+  void on_end(std::function<void()> f) { on_end_ = std::move(f); }
+  void OnCancel() override { end(); }
   void OnDone() override {
-    if (on_done_) on_done_();
+    end();
     delete this;
   }
 
  private:
-  std::function<void()> on_done_;
+  void end() {
+    if (on_end_ && !ended_.exchange(true)) on_end_();
+  }
+  std::function<void()> on_end_;  // Set before the call is handed to gRPC.
+  std::atomic<bool> ended_{false};
 };
 
 template <class Req, class Resp>

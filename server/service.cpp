@@ -37,7 +37,7 @@ TypedUnaryCall<Req, Resp>* start_call(Service* svc, const char* method, const gr
     svc->finish_unary(call, method, busy);
     return nullptr;
   }
-  call->on_done([svc] { svc->leave_call(); });
+  call->on_end([svc] { svc->leave_call(); });
   if (parse_message(*in, &call->req)) return call;
   svc->finish_unary(call, method, malformed(Req::descriptor()->full_name(), in->Length()));
   return nullptr;

@@ -4,6 +4,7 @@
 // lifetime; service.cpp owns the scenes they work on.
 #include "streams.h"
 
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <memory>
@@ -58,6 +59,7 @@ class StreamReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::Byt
   }
 
   void OnCancel() override {
+    leave_call();  // Nobody waits for this stream any more.
     std::lock_guard<std::mutex> lock(mu_);
     stop_locked(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled"));
     self().advance_locked();
@@ -65,7 +67,7 @@ class StreamReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::Byt
 
   void OnDone() override {
     if (registered_) svc_->remove_stream(this);
-    if (in_call_) svc_->leave_call();
+    leave_call();
     self().on_done();
     bool del;
     {
@@ -122,6 +124,11 @@ class StreamReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::Byt
 
   void start_read() { StartRead(&in_); }
 
+  /// Gives back the stream's place among the calls in progress, once.
+  void leave_call() {
+    if (in_call_ && !left_call_.exchange(true)) svc_->leave_call();
+  }
+
   /// The scene id of a message: the first must name a valid one, later ones
   /// may repeat it or leave it empty.
   grpc::Status check_scene_field_locked(const std::string& id) const {
@@ -155,7 +162,8 @@ class StreamReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::Byt
   const char* method_;
   std::string client_;       // The connection's peer: the pool's admission key. Set in admit.
   bool registered_ = false;  // Written before any reaction can run.
-  bool in_call_ = false;     // Holds a place among the calls in progress; as registered_.
+  bool in_call_ = false;     // Took a place among the calls in progress; as registered_.
+  std::atomic<bool> left_call_{false};
   std::mutex mu_;
   std::shared_ptr<SceneEntry> entry_;  // Guarded by mu_; set by the first message.
   bool writing_ = false, stopping_ = false, finished_ = false, done_ = false;  // Guarded by mu_.
