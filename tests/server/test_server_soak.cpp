@@ -1,0 +1,162 @@
+// The soak (soak.h) for a short time: VOXVIS_SOAK_SECONDS, 15 s by default,
+// the same under the sanitizers. It asserts behaviour only, never a timing:
+// the machine is shared, and its figures are printed, not judged
+// (tests/bench/run_soak.sh runs it longer; docs/server.md has the figures).
+// VOXVIS_SOAK_MIX=floods,races (say) runs only those hostile loops.
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <sstream>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "server_process.h"
+#include "soak.h"
+
+namespace voxvis::servertest {
+namespace {
+
+/// VOXVIS_SOAK_SECONDS, or `fallback` when unset or not a positive number.
+Seconds duration_from_env(Seconds fallback) {
+  const char* text = std::getenv("VOXVIS_SOAK_SECONDS");
+  if (text == nullptr) return fallback;
+  char* end = nullptr;
+  const double v = std::strtod(text, &end);
+  return end != text && *end == '\0' && std::isfinite(v) && v > 0 ? Seconds(v) : fallback;
+}
+
+/// VOXVIS_SOAK_MIX (loop names separated by commas), or every loop.
+std::vector<std::string> mix_from_env() {
+  const char* text = std::getenv("VOXVIS_SOAK_MIX");
+  if (text == nullptr) return all_hostile_loops();
+  std::vector<std::string> names;
+  std::istringstream in(text);
+  for (std::string name; std::getline(in, name, ',');)
+    if (!name.empty()) names.push_back(name);
+  return names;
+}
+
+std::string show(const Spread& s) {
+  char text[96];
+  std::snprintf(text, sizeof text, "p50 %.1f ms, p99 %.1f ms, max %.1f ms", s.p50, s.p99, s.max);
+  return text;
+}
+
+/// The figures, a few lines of text.
+std::string figures(const SoakResult& r) {
+  std::ostringstream o;
+  char line[256];
+  std::snprintf(line, sizeof line, "soak: %.1f s, ", r.seconds);
+  const ViewerFigures& v = r.viewer;
+  o << line
+    << (r.mix.empty() ? "the well-behaved viewer alone"
+                      : "a hostile mix (" + r.mix + ") beside one well-behaved viewer")
+    << "\ngood viewer: frames sent " << v.sent << ", answered " << v.answered
+    << ", skipped by the server " << v.skipped << ", errors " << v.errors.size()
+    << "\n  answer gaps: " << show(v.gaps) << "\n  round trip:  " << show(v.round_trip)
+    << "\n  engine:      " << show(v.engine) << "\n";
+  for (const std::string& e : v.errors) o << "  error: " << e << "\n";
+  long calls = 0, shed = 0;
+  for (const auto& [kind, k] : r.hostile) {
+    calls += k.calls();
+    const auto it = k.codes.find(grpc::StatusCode::RESOURCE_EXHAUSTED);
+    if (it != k.codes.end()) shed += it->second;
+  }
+  if (!r.hostile.empty())
+    o << "hostile calls by kind and outcome (" << calls << ", of which " << shed
+      << " shed as busy):\n";
+  for (const auto& [kind, k] : r.hostile) {
+    std::snprintf(line, sizeof line, "  %-28s %7ld ", kind.c_str(), k.calls());
+    o << line;
+    for (const auto& [code, count] : k.codes) o << " " << code_name(code) << " " << count;
+    o << "\n";
+    for (const std::string& u : k.unexpected) o << "    unexpected: " << u << "\n";
+  }
+  std::snprintf(line, sizeof line,
+                "server RSS: start %.1f MiB, peak %.1f MiB, end %.1f MiB (%d samples)\n"
+                "server answering at the end: %s (%s)\n",
+                r.rss_start_mib, r.rss_peak_mib, r.rss_end_mib, r.rss_samples,
+                r.answering_at_end ? "yes" : "NO", r.answering_status.c_str());
+  return o.str() + line;
+}
+
+std::string joined(const std::vector<std::string>& lines) {
+  std::string out;
+  for (const std::string& l : lines) out += "\n  " + l;
+  return out;
+}
+
+// A hostile mix (bad times, bad ids, floods, dropped streams, bad and too
+// fast moves, create/delete races, malformed bytes) beside one viewer at
+// 30 Hz: the server stays up and exits cleanly, the viewer is answered to
+// its last frame, every hostile call ends with a code its kind allows, the
+// races keep their invariants, and memory stays within a bound.
+TEST(Soak, HostileMixBesideAWellBehavedViewer) {
+  // A busy position saver (the simulations move objects all the time) for
+  // the create/delete races to meet.
+  ServerProcess server({"--save-period", "0.05"});
+  ASSERT_TRUE(server.start());
+  SoakOptions options;
+  options.duration = duration_from_env(Seconds(15));
+  options.mix = mix_from_env();
+  const SoakResult r = run_soak(server, options);
+  std::printf("%s", figures(r).c_str());
+  std::fflush(stdout);
+
+  EXPECT_TRUE(server.running()) << "the server died during the soak";
+  EXPECT_TRUE(r.answering_at_end) << r.answering_status;
+
+  // The good viewer: every frame answered, or replaced by a newer one
+  // (latest frame wins) whose answer came; the last one answered; no error.
+  const ViewerFigures& v = r.viewer;
+  EXPECT_GT(v.sent, 0u);
+  EXPECT_TRUE(v.errors.empty()) << joined(v.errors);
+  EXPECT_TRUE(v.increasing) << "answers' frame numbers went back";
+  EXPECT_EQ(v.last_answered, v.last_sent) << "the last frame sent was not answered";
+  EXPECT_EQ(v.answered + v.skipped, v.sent)
+      << "every frame is answered or counted in a later answer's frames_skipped";
+
+  // Every hostile kind ran and ended only as it may; the races kept their
+  // invariants (broken ones are unexpected observations of their kind).
+  EXPECT_EQ(r.hostile.empty(), options.mix.empty());
+  for (const auto& [kind, k] : r.hostile) {
+    EXPECT_GT(k.calls(), 0) << kind << " never ran";
+    EXPECT_TRUE(k.unexpected.empty()) << kind << ":" << joined(k.unexpected);
+    if (!k.expected.empty()) continue;  // Malformed bytes: any outcome but a crash.
+    for (grpc::StatusCode bad : {grpc::StatusCode::INTERNAL, grpc::StatusCode::UNKNOWN}) {
+      if (k.codes.count(bad) != 0)
+        std::printf("note: %s ended %s\n", kind.c_str(), code_name(bad).c_str());
+    }
+  }
+
+  // Memory: a bound, not a figure. Under AddressSanitizer every block is
+  // padded and freed ones are held in a quarantine (256 MiB by default).
+#if defined(__SANITIZE_ADDRESS__)
+  const double allowance_mib = 1536.0;
+#else
+  const double allowance_mib = 512.0;
+#endif
+  EXPECT_GT(r.rss_samples, 0);
+  EXPECT_LT(r.rss_end_mib, r.rss_start_mib + allowance_mib);
+
+  EXPECT_EQ(server.terminate(), 0) << "SIGTERM after the soak";
+}
+
+// The same viewer with nothing beside it: the baseline of its figures, run
+// by tests/bench/run_soak.sh (--gtest_also_run_disabled_tests), not in CI.
+TEST(Soak, DISABLED_ViewerAloneBaseline) {
+  ServerProcess server({"--save-period", "0.05"});
+  ASSERT_TRUE(server.start());
+  SoakOptions options;
+  options.duration = duration_from_env(Seconds(15));
+  options.mix = {};
+  const SoakResult r = run_soak(server, options);
+  std::printf("%s", figures(r).c_str());
+  EXPECT_TRUE(r.viewer.errors.empty()) << joined(r.viewer.errors);
+  EXPECT_EQ(r.viewer.last_answered, r.viewer.last_sent);
+  EXPECT_EQ(server.terminate(), 0);
+}
+
+}  // namespace
+}  // namespace voxvis::servertest
