@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <iterator>
 #include <limits>
 #include <string>
 
@@ -200,11 +201,145 @@ bool Scene::Impl::contains_voxel(const Obj& o, const Vec3& c, int x, int y, int 
     const double rr = o.radius - s;
     return rr > 0.0 && glm::dot(far_d, far_d) <= rr * rr;
   }
-  const Vec3 sg = s * inv_vs;
-  const Vec3 lo = to_grid(c - o.half) + sg;
-  const Vec3 hi = to_grid(c + o.half) - sg;
+  Vec3 lo, hi;
+  inner_box(o, c, &lo, &hi);
   return v.x >= lo.x && v.x + 1.0 <= hi.x && v.y >= lo.y && v.y + 1.0 <= hi.y &&
          v.z >= lo.z && v.z + 1.0 <= hi.z;
+}
+
+namespace {
+
+/// s = a + b rounded; true when the sum is exact (Knuth's TwoSum: the
+/// rounding error is computed exactly and is zero).
+bool exact_sum(double a, double b, double* s) {
+  *s = a + b;
+  const double bb = *s - a;
+  const double err = (a - (*s - bb)) + (b - bb);
+  return err == 0.0;
+}
+
+/// Whether w - b0 equals g * h exactly, as real numbers. Both sides are
+/// written as an unevaluated sum hi + lo with hi the rounded value and lo its
+/// exact error (TwoSum, TwoProduct by fma); that pair is unique for a real
+/// number, so comparing the pairs compares the reals.
+bool on_boundary(double w, double b0, double g, double h) {
+  const double d = w - b0;
+  const double dd = d - w;
+  const double derr = (w - (d - dd)) + (-b0 - dd);
+  const double p = g * h;
+  const double perr = std::fma(g, h, -p);
+  return d == p && derr == perr;
+}
+
+constexpr int kMaxUnion = 16;  ///< Inner boxes the exact union test takes per voxel.
+
+}  // namespace
+
+void Scene::Impl::inner_box(const Obj& o, const Vec3& c, Vec3* lo, Vec3* hi) const {
+  const double s = slop(max_abs(c) + o.radius + max_abs(o.half));
+  const Vec3 sg = s * inv_vs;
+  if (o.shape == Shape::Sphere) {
+    // Inscribed cube, half side r / sqrt(3), rounded down generously; its
+    // mapping is rounded, so it is shrunk by the allowance too.
+    const double h = o.radius * (1.0 / std::sqrt(3.0)) * (1.0 - 16.0 * kUlp);
+    *lo = to_grid(c - h) + sg;
+    *hi = to_grid(c + h) - sg;
+    return;
+  }
+  for (int a = 0; a < 3; ++a) {
+    // A face whose world coordinate is exactly bounds_min + n * voxel_size
+    // maps to n with no rounding at all: compare exactly there (this is
+    // what lets voxel-aligned walls and unit blocks cover their voxels).
+    for (int side = 0; side < 2; ++side) {
+      double w = 0.0;
+      const bool exact = exact_sum(c[a], side ? o.half[a] : -o.half[a], &w);
+      const double g = (w - spec.bounds_min[a]) * inv_vs[a];
+      // g is the face's exact grid coordinate when g * voxel_size equals
+      // w - bounds_min as real numbers; any rounding shows as a difference.
+      const bool exact_g = exact && on_boundary(w, spec.bounds_min[a], g, spec.voxel_size[a]);
+      const double v = exact_g ? g : (side ? g - sg[a] : g + sg[a]);
+      (side ? (*hi)[a] : (*lo)[a]) = v;
+    }
+  }
+}
+
+bool Scene::Impl::union_covers(const std::uint32_t* slots, std::size_t n, int x, int y, int z) const {
+  const Vec3 v0{static_cast<double>(x), static_cast<double>(y), static_cast<double>(z)};
+  const Vec3 v1 = v0 + 1.0;
+  Vec3 blo[kMaxUnion], bhi[kMaxUnion];
+  int nb = 0;
+  bool too_many = false;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Obj& o = objs[slots[i]];
+    const Vec3& c = o.dynamic ? o.disc_center : o.center;
+    if (o.shape == Shape::Sphere && contains_voxel(o, c, x, y, z)) return true;
+    Vec3 lo, hi;
+    inner_box(o, c, &lo, &hi);
+    lo = glm::max(lo, v0);
+    hi = glm::min(hi, v1);
+    // Boxes meeting the voxel in less than a volume add nothing to the cover
+    // of its open cells (see below).
+    if (!(lo.x < hi.x && lo.y < hi.y && lo.z < hi.z)) continue;
+    if (lo == v0 && hi == v1) return true;  // One object covers it.
+    if (nb == kMaxUnion) {
+      too_many = true;  // Keep looking for a single cover; the union is not tested.
+      continue;
+    }
+    blo[nb] = lo;
+    bhi[nb] = hi;
+    ++nb;
+  }
+  if (too_many || nb < 2) return false;
+  // The faces of the boxes cut the voxel into cells; no face passes through
+  // a cell's interior, so a box holding a cell's centre holds the whole
+  // closed cell. The voxel is covered iff every cell's centre is.
+  double cut[3][2 * kMaxUnion + 2];
+  int nc[3];
+  for (int a = 0; a < 3; ++a) {
+    int k = 0;
+    cut[a][k++] = v0[a];
+    cut[a][k++] = v1[a];
+    for (int i = 0; i < nb; ++i) {
+      cut[a][k++] = blo[i][a];
+      cut[a][k++] = bhi[i][a];
+    }
+    std::sort(cut[a], cut[a] + k);
+    nc[a] = static_cast<int>(std::unique(cut[a], cut[a] + k) - cut[a]);
+  }
+  for (int k = 0; k + 1 < nc[2]; ++k) {
+    const double cz = 0.5 * (cut[2][k] + cut[2][k + 1]);
+    for (int j = 0; j + 1 < nc[1]; ++j) {
+      const double cy = 0.5 * (cut[1][j] + cut[1][j + 1]);
+      for (int i = 0; i + 1 < nc[0]; ++i) {
+        const double cx = 0.5 * (cut[0][i] + cut[0][i + 1]);
+        bool in = false;
+        for (int b = 0; b < nb && !in; ++b)
+          in = cx > blo[b].x && cx < bhi[b].x && cy > blo[b].y && cy < bhi[b].y &&
+               cz > blo[b].z && cz < bhi[b].z;
+        if (!in) return false;
+      }
+    }
+  }
+  return true;
+}
+
+bool Scene::Impl::covered_now(int x, int y, int z) const {
+  std::uint32_t slots[4 * kMaxUnion];
+  std::size_t n = 0;
+  const auto i = static_cast<std::size_t>(index(x, y, z));
+  for (std::uint32_t j = static_offsets[i]; j < static_offsets[i + 1] && n < std::size(slots); ++j)
+    slots[n++] = static_ids[j];
+  if (!bricks.empty()) {
+    const detail::Brick& br = bricks[static_cast<std::size_t>(
+        (x >> detail::kBrickShift) +
+        bricks_res.x * ((y >> detail::kBrickShift) + std::int64_t{bricks_res.y} * (z >> detail::kBrickShift)))];
+    for (const detail::BrickEntry& e : br.entries) {
+      if ((e.key & 1u) || !current(e)) continue;
+      if (n == std::size(slots)) return false;  // Too crowded to test: not covered (tightness only).
+      slots[n++] = e.key >> 1;
+    }
+  }
+  return union_covers(slots, n, x, y, z);
 }
 
 bool Scene::Impl::box_inside_grid(const Vec3& lo, const Vec3& hi) const {
@@ -265,13 +400,22 @@ void Scene::Impl::discretize(std::uint32_t slot) {
   const double s = slop(max_abs(o.center) + o.radius + max_abs(o.half));
   const VoxBox vb = touch_range(o.box_lo(), o.box_hi(), s);
   brick_add(vb, slot << 1, o.disc_gen);
+  // Adding an object only adds to the cover: a voxel changes only where the
+  // object alone contains it, or where its inner box meets the voxel in a
+  // volume and joins the union.
+  Vec3 ilo, ihi;
+  inner_box(o, o.center, &ilo, &ihi);
   for (int z = vb.lo.z; z <= vb.hi.z; ++z)
     for (int y = vb.lo.y; y <= vb.hi.y; ++y)
-      for (int x = vb.lo.x; x <= vb.hi.x; ++x)
-        if (contains_voxel(o, o.center, x, y, z)) {
-          const auto i = static_cast<std::size_t>(index(x, y, z));
-          if (dyn_opaque[i]++ == 0) vflags[i] |= kDynOpaque;
-        }
+      for (int x = vb.lo.x; x <= vb.hi.x; ++x) {
+        const auto i = static_cast<std::size_t>(index(x, y, z));
+        if (vflags[i] & (kStaticOpaque | kDynOpaque)) continue;
+        const Vec3 v{static_cast<double>(x), static_cast<double>(y), static_cast<double>(z)};
+        bool cov = contains_voxel(o, o.center, x, y, z);
+        if (!cov && glm::all(glm::lessThan(glm::max(ilo, v), glm::min(ihi, v + 1.0))))
+          cov = covered_now(x, y, z);
+        if (cov) vflags[i] |= kDynOpaque;
+      }
   if (!box_inside_grid(o.box_lo(), o.box_hi())) list_add(outside_objs, o.outside_pos, slot);
   ++pending.objects_discretized;
 }
@@ -283,14 +427,17 @@ void Scene::Impl::undiscretize(std::uint32_t slot) {
   const VoxBox vb = touch_range(c - o.half, c + o.half, s);
   brick_remove(vb);
   ++o.disc_gen;  // Its brick entries are stale from now on.
-  // The same predicate at the same centre finds exactly the voxels counted.
+  // The object no longer counts (its entries are stale): a covered voxel it
+  // touched may have needed it, so its cover is computed again from the
+  // objects that remain. Per-object counts would not do: a voxel covered by
+  // a union loses its cover when any one member leaves.
   for (int z = vb.lo.z; z <= vb.hi.z; ++z)
     for (int y = vb.lo.y; y <= vb.hi.y; ++y)
-      for (int x = vb.lo.x; x <= vb.hi.x; ++x)
-        if (contains_voxel(o, c, x, y, z)) {
-          const auto i = static_cast<std::size_t>(index(x, y, z));
-          if (--dyn_opaque[i] == 0) vflags[i] &= static_cast<std::uint8_t>(~kDynOpaque);
-        }
+      for (int x = vb.lo.x; x <= vb.hi.x; ++x) {
+        const auto i = static_cast<std::size_t>(index(x, y, z));
+        if ((vflags[i] & kDynOpaque) && !covered_now(x, y, z))
+          vflags[i] &= static_cast<std::uint8_t>(~kDynOpaque);
+      }
   list_remove(outside_objs, o.outside_pos, false);
 }
 
@@ -500,7 +647,6 @@ Status Scene::create(const SceneDesc& desc, const SceneOptions& options, std::un
               ++s.static_offsets[i + 1];
               ++total;
               s.vflags[i] |= Impl::kStaticIds;
-              if (s.contains_voxel(o, o.center, x, y, z)) s.vflags[i] |= Impl::kStaticOpaque;
             } else {
               s.static_ids[s.static_offsets[i]++] = slot;
             }
@@ -519,9 +665,18 @@ Status Scene::create(const SceneDesc& desc, const SceneOptions& options, std::un
       s.static_offsets[0] = 0;
     }
   }
+  // Static cover, once: from every static object touching the voxel.
+  for (int z = 0; z < s.res.z; ++z)
+    for (int y = 0; y < s.res.y; ++y)
+      for (int x = 0; x < s.res.x; ++x) {
+        const auto i = static_cast<std::size_t>(s.index(x, y, z));
+        if ((s.vflags[i] & Impl::kStaticIds) &&
+            s.union_covers(s.static_ids.data() + s.static_offsets[i],
+                           s.static_offsets[i + 1] - s.static_offsets[i], x, y, z))
+          s.vflags[i] |= Impl::kStaticOpaque;
+      }
 
   if (s.dynamic_count > 0) {
-    s.dyn_opaque.assign(nvox, 0);
     s.bricks_res = (s.res + ((1 << detail::kBrickShift) - 1)) >> detail::kBrickShift;
     s.bricks.resize(static_cast<std::size_t>(std::int64_t{s.bricks_res.x} * s.bricks_res.y * s.bricks_res.z));
     // Until a viewer has looked, every object may be visible: discretize all

@@ -1,13 +1,12 @@
 // scene_impl.h — the shared scene grid and per-thread scratch.
 //
 // Layout (flat arrays indexed by voxel, x fastest):
-//  * vflags          1 byte a voxel: wholly inside a static object, touched
-//    by a static object, wholly inside a discretized dynamic object. One
-//    byte load answers the traversal's common case, an empty voxel.
+//  * vflags          1 byte a voxel: covered by static objects, touched
+//    by a static object, covered by the objects only with a discretized
+//    dynamic one among them. One byte load answers the traversal's common
+//    case, an empty voxel. "Covered" is the union rule of docs/design.md.
 //  * static_offsets/static_ids  CSR lists of the static objects touching
 //    each voxel; built once (paper 4.5).
-//  * dyn_opaque      per voxel, how many discretized dynamic objects contain
-//    it wholly (allocated only when the scene has dynamic objects).
 //  * bricks          per 4x4x4 brick, the dynamic objects and TBVs touching
 //    it; an entry is (slot << 1 | is_tbv, generation). The exact voxel test happens when
 //    the traversal reaches a voxel, so a move or a TBV costs the bricks it
@@ -141,8 +140,7 @@ struct Scene::Impl {
   std::vector<std::uint32_t> static_offsets;
   std::vector<std::uint32_t> static_ids;  ///< Slots.
 
-  // Dynamic layer.
-  std::vector<std::uint32_t> dyn_opaque;
+  // Dynamic layer (allocated only when the scene has dynamic objects).
   glm::ivec3 bricks_res{0};
   std::vector<detail::Brick> bricks;
 
@@ -184,6 +182,17 @@ struct Scene::Impl {
   detail::VoxBox touch_range(const Vec3& lo, const Vec3& hi, double slop_w) const;
   bool touches(const detail::Obj& o, const Vec3& c, int x, int y, int z) const;
   bool contains_voxel(const detail::Obj& o, const Vec3& c, int x, int y, int z) const;
+  /// A box (grid coordinates) that the object at centre c contains: exact
+  /// faces where the mapping is exact, shrunk by the rounding allowance
+  /// elsewhere; a sphere gives its inscribed cube. May be empty (lo > hi).
+  void inner_box(const detail::Obj& o, const Vec3& c, Vec3* lo, Vec3* hi) const;
+  /// Whether the objects in `slots` (at their discretized or static centres)
+  /// together cover voxel (x, y, z): one sphere contains it, or the union of
+  /// their inner boxes covers the closed unit cube (docs/design.md, "Opacity").
+  bool union_covers(const std::uint32_t* slots, std::size_t n, int x, int y, int z) const;
+  /// union_covers over every static object touching the voxel and every
+  /// discretized dynamic object of its brick.
+  bool covered_now(int x, int y, int z) const;
   bool box_inside_grid(const Vec3& lo, const Vec3& hi) const;
 
   // --- dynamic state ------------------------------------------------------

@@ -463,7 +463,7 @@ void Traversal::visit_row(int face, int a, int b, int d, std::int64_t la, std::i
 
 void Traversal::run() {
   const GridSpec& g = s_.spec;
-  has_dyn_ = !s_.dyn_opaque.empty();
+  has_dyn_ = !s_.bricks.empty();
   const Vec3 eg = s_.to_grid(wf_.eye);
   if (eye_too_far(eg)) return;  // Scene::frame falls back to frustum culling.
   for (int a = 0; a < 3; ++a) {

@@ -419,4 +419,132 @@ ObjectDesc dynamic(ObjectDesc o, double max_speed) {
   return o;
 }
 
+namespace {
+
+Camera path_camera(Vec3 eye, Vec3 dir, double fov) {
+  Camera c;
+  c.eye = eye;
+  c.dir = dir;
+  c.up = Vec3(0.0, 1.0, 0.0);
+  c.fov_y_deg = fov;
+  c.aspect = 16.0 / 9.0;
+  c.near = 0.05;
+  c.far = 500.0;
+  return c;
+}
+
+}  // namespace
+
+ScenePath make_indoor_level(int rooms_x, int rooms_z, int frames, std::uint64_t seed) {
+  constexpr int kRoom = 12;  // Voxels from wall to wall, walls included.
+  constexpr int kHeight = 6;
+  ScenePath out;
+  SceneDesc& d = out.scene;
+  const int nx = rooms_x * kRoom + 1, nz = rooms_z * kRoom + 1;
+  d.bounds_min = Vec3(0.0);
+  d.bounds_max = Vec3(nx, kHeight, nz);
+  d.grid = glm::ivec3(nx, kHeight, nz);
+  ObjectId id = 1;
+  d.objects.push_back(box_between(id++, Vec3(0, 0, 0), Vec3(nx, 1, nz)));                  // floor
+  d.objects.push_back(box_between(id++, Vec3(0, kHeight - 1, 0), Vec3(nx, kHeight, nz)));  // ceiling
+  // Walls along x (at z = k * kRoom) and along z (at x = k * kRoom), one box
+  // per segment between doorways; doorways 2 voxels wide in the middle of
+  // each inner wall.
+  const double y0 = 1.0, y1 = kHeight - 1.0;
+  for (int k = 0; k <= rooms_z; ++k) {
+    const double z = k * kRoom;
+    for (int r = 0; r < rooms_x; ++r) {
+      const double x0 = r * kRoom, x1 = x0 + kRoom + 1;
+      if (k == 0 || k == rooms_z) {
+        d.objects.push_back(box_between(id++, Vec3(x0, y0, z), Vec3(x1, y1, z + 1)));
+      } else {
+        d.objects.push_back(box_between(id++, Vec3(x0, y0, z), Vec3(x0 + 5, y1, z + 1)));
+        d.objects.push_back(box_between(id++, Vec3(x0 + 7, y0, z), Vec3(x1, y1, z + 1)));
+      }
+    }
+  }
+  for (int k = 0; k <= rooms_x; ++k) {
+    const double x = k * kRoom;
+    for (int r = 0; r < rooms_z; ++r) {
+      const double z0 = r * kRoom + 1, z1 = z0 + kRoom - 1;
+      if (k == 0 || k == rooms_x) {
+        d.objects.push_back(box_between(id++, Vec3(x, y0, z0), Vec3(x + 1, y1, z1)));
+      } else {
+        d.objects.push_back(box_between(id++, Vec3(x, y0, z0), Vec3(x + 1, y1, z0 + 4)));
+        d.objects.push_back(box_between(id++, Vec3(x, y0, z0 + 6), Vec3(x + 1, y1, z1)));
+      }
+    }
+  }
+  Rng rng(seed);
+  for (int rz = 0; rz < rooms_z; ++rz)
+    for (int rx = 0; rx < rooms_x; ++rx)
+      for (int i = 0; i < 6; ++i) {
+        const Vec3 c = Vec3(rx * kRoom, 0, rz * kRoom) +
+                       Vec3(rng.uniform(2.5, kRoom - 1.5), rng.uniform(1.5, 3.0), rng.uniform(2.5, kRoom - 1.5));
+        if (i % 2) {
+          d.objects.push_back(sphere(id++, c, rng.uniform(0.3, 0.8)));
+        } else {
+          const Vec3 h(rng.uniform(0.2, 0.7), rng.uniform(0.2, 0.5), rng.uniform(0.2, 0.7));
+          d.objects.push_back(box_around(id++, c, h));
+        }
+      }
+  // Walk through the doorways of the middle row of rooms and back.
+  const double zc = (rooms_z / 2) * kRoom + 6.5;
+  for (int f = 0; f < frames; ++f) {
+    const double s = static_cast<double>(f) / std::max(1, frames - 1);
+    const double x = 2.0 + s * (nx - 4.0);
+    const double yaw = 0.9 * std::sin(6.28318 * 3.0 * s);
+    out.cameras.push_back(path_camera(Vec3(x, 2.7, zc), Vec3(std::cos(yaw), -0.05, std::sin(yaw)), 70.0));
+  }
+  return out;
+}
+
+ScenePath make_voxel_world(int size, int frames, bool cave_path, std::uint64_t seed) {
+  ScenePath out;
+  SceneDesc& d = out.scene;
+  constexpr int kMaxH = 16;
+  d.bounds_min = Vec3(0.0);
+  d.bounds_max = Vec3(size, kMaxH, size);
+  d.grid = glm::ivec3(size, kMaxH, size);
+  Rng rng(seed);
+  const double ph[4] = {rng.uniform(0, 6.28), rng.uniform(0, 6.28), rng.uniform(0, 6.28), rng.uniform(0, 6.28)};
+  auto height = [&](int x, int z) {
+    const double h = 8.0 + 2.5 * std::sin(0.11 * x + ph[0]) + 2.0 * std::sin(0.13 * z + ph[1]) +
+                     1.0 * std::sin(0.31 * (x + z) + ph[2]);
+    return std::clamp(static_cast<int>(h), 4, 12);
+  };
+  // A cave: a tunnel along x at z = size/2, y in [2, 4], plus a side tunnel
+  // along z that opens to the sky at its end.
+  const int zc = size / 2, xs = size / 3;
+  auto cave = [&](int x, int y, int z) {
+    if (y >= 2 && y <= 4 && std::abs(z - zc) <= 1 && x >= 3 && x <= size - 4) return true;
+    if (y >= 2 && y <= 12 && std::abs(x - xs) <= 1 && z >= zc && z <= zc + size / 4) {
+      const int top = 4 + std::max(0, (z - zc - size / 8));  // Rises to the surface.
+      return y <= top;
+    }
+    return false;
+  };
+  ObjectId id = 1;
+  for (int z = 0; z < size; ++z)
+    for (int x = 0; x < size; ++x) {
+      const int h = height(x, z);
+      for (int y = 0; y < h; ++y)
+        if (!cave(x, y, z)) d.objects.push_back(box_between(id++, Vec3(x, y, z), Vec3(x + 1, y + 1, z + 1)));
+    }
+  for (int f = 0; f < frames; ++f) {
+    const double s = static_cast<double>(f) / std::max(1, frames - 1);
+    const double yaw = 0.6 * std::sin(6.28318 * 2.0 * s);
+    if (cave_path) {
+      const double x = 4.0 + s * (size - 8.0);
+      out.cameras.push_back(path_camera(Vec3(x, 3.5, zc + 0.5), Vec3(std::cos(yaw), -0.02, std::sin(yaw)), 70.0));
+    } else {
+      const double x = 2.0 + s * (size - 4.0);
+      const int zi = size / 4;
+      const double y = height(static_cast<int>(x), zi) + 2.5;
+      out.cameras.push_back(path_camera(Vec3(x, y, zi + 0.5), Vec3(std::cos(yaw), -0.15, std::sin(yaw)), 70.0));
+    }
+  }
+  return out;
+}
+
 }  // namespace voxvis::test

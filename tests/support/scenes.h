@@ -142,4 +142,24 @@ ObjectDesc box_between(ObjectId id, Vec3 lo, Vec3 hi);
 ObjectDesc box_around(ObjectId id, Vec3 center, Vec3 half_extent);
 ObjectDesc dynamic(ObjectDesc o, double max_speed);
 
+/// A static scene and a camera path through it.
+struct ScenePath {
+  SceneDesc scene;
+  std::vector<Camera> cameras;
+};
+
+/// An indoor level on unit voxels: a rows x cols array of 12 x 12 rooms with
+/// 4 units of height, walls 1 voxel thick built from abutting boxes (one per
+/// wall segment between doorways 2 voxels wide), floor and ceiling slabs, a
+/// few boxes and spheres in each room; every wall face lies on a voxel plane.
+/// The path walks along the middle row of rooms at eye height, looking ahead
+/// and turning.
+ScenePath make_indoor_level(int rooms_x, int rooms_z, int frames, std::uint64_t seed);
+
+/// A voxel world of unit blocks, one object per voxel: terrain of height
+/// 4..12 over size x size columns, with caves carved out below the surface
+/// (one of them open to the sky). cave_path chooses a path through a cave
+/// (else over the surface at 2 voxels above the ground).
+ScenePath make_voxel_world(int size, int frames, bool cave_path, std::uint64_t seed);
+
 }  // namespace voxvis::test
