@@ -30,7 +30,14 @@
 //     p99_us and tbvs_expired_total/tbvs_created_total show the cost of TBV
 //     expiry waves inside the timed window.
 //
-// Filter with --benchmark_filter=walkthrough or --benchmark_filter=hidden_dynamic.
+//   indoor, voxel_world/surface, voxel_world/cave
+//     Static scenes on unit voxels whose faces lie on voxel planes
+//     (make_indoor_level: 6 x 3 rooms of walls made of abutting boxes;
+//     make_voxel_world: 64 x 64 columns of unit blocks with caves) and a
+//     200-frame camera path each, replayed ping-pong. Counters as for
+//     walkthrough, with exact_mean and vfc_mean on every 10th frame.
+//
+// Filter with --benchmark_filter=walkthrough, hidden_dynamic, indoor or voxel_world.
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -305,7 +312,87 @@ void BM_HiddenDynamic(benchmark::State& state, int n) {
   state.SetItemsProcessed(static_cast<std::int64_t>(times.size()));
 }
 
+struct StaticPath {
+  test::ScenePath path;
+  std::vector<int> sampled;
+  double exact_mean = 0.0;
+  double vfc_mean = 0.0;
+};
+
+const StaticPath& static_path(int which) {
+  static std::map<int, StaticPath> cache;
+  auto it = cache.find(which);
+  if (it != cache.end()) return it->second;
+  StaticPath out;
+  out.path = which == 0 ? test::make_indoor_level(6, 3, 200, 7)
+                        : test::make_voxel_world(64, 200, which == 2, 11);
+  double exact = 0.0, vfc = 0.0;
+  for (std::size_t k = 0; k < out.path.cameras.size(); k += 10) {
+    RaySampling s;
+    s.cols = 256;
+    s.rows = 144;
+    s.seed = k;
+    exact += static_cast<double>(test::visible_objects(out.path.scene.objects, out.path.cameras[k], s).size());
+    vfc += static_cast<double>(test::frustum_objects(out.path.scene.objects, out.path.cameras[k]).size());
+    out.sampled.push_back(static_cast<int>(k));
+  }
+  out.exact_mean = exact / static_cast<double>(std::max<std::size_t>(1, out.sampled.size()));
+  out.vfc_mean = vfc / static_cast<double>(std::max<std::size_t>(1, out.sampled.size()));
+  return cache.emplace(which, std::move(out)).first->second;
+}
+
+void BM_StaticPath(benchmark::State& state, int which) {
+  const StaticPath& sp = static_path(which);
+  std::unique_ptr<Scene> scene;
+  if (const Status st = Scene::create(sp.path.scene, SceneOptions{}, &scene); !st.ok) {
+    state.SkipWithError(("Scene::create: " + st.str()).c_str());
+    return;
+  }
+  Scratch scratch;
+  const ViewerId viewer = scene->add_viewer();
+  const std::size_t n = sp.path.cameras.size();
+  std::vector<double> times;
+  double voxels = 0.0, pvs = 0.0;
+  std::vector<double> pvs_at(n, -1.0);
+  std::size_t step = 0;
+  FrameResult result;
+  for (auto _ : state) {
+    const std::size_t k = ping_pong(step, n);
+    if (!scene->frame(viewer, sp.path.cameras[k], static_cast<double>(step) / 60.0, scratch, &result).ok) {
+      state.SkipWithError("frame failed");
+      break;
+    }
+    ++step;
+    times.push_back(result.stats.time_us);
+    voxels += static_cast<double>(result.stats.voxels_visited);
+    pvs += static_cast<double>(result.pvs.size());
+    if (pvs_at[k] < 0.0) pvs_at[k] = static_cast<double>(result.pvs.size());
+    benchmark::DoNotOptimize(result.pvs.data());
+  }
+  const double frames = static_cast<double>(std::max<std::size_t>(1, times.size()));
+  double sub = 0.0;
+  int sub_n = 0;
+  for (int k : sp.sampled) {
+    if (pvs_at[static_cast<std::size_t>(k)] >= 0.0) {
+      sub += pvs_at[static_cast<std::size_t>(k)];
+      ++sub_n;
+    }
+  }
+  state.counters["median_us"] = percentile(times, 0.5);
+  state.counters["p99_us"] = percentile(times, 0.99);
+  state.counters["voxels_mean"] = voxels / frames;
+  state.counters["pvs_mean"] = pvs / frames;
+  state.counters["pvs_sub_mean"] = sub_n ? sub / sub_n : 0.0;
+  state.counters["exact_mean"] = sp.exact_mean;
+  state.counters["vfc_mean"] = sp.vfc_mean;
+  state.counters["objects"] = static_cast<double>(sp.path.scene.objects.size());
+  state.SetItemsProcessed(static_cast<std::int64_t>(times.size()));
+}
+
 void register_all() {
+  const char* paths[] = {"indoor", "voxel_world/surface", "voxel_world/cave"};
+  for (int i = 0; i < 3; ++i)
+    benchmark::RegisterBenchmark(paths[i], BM_StaticPath, i)->Iterations(398)->Unit(benchmark::kMicrosecond);
   const int grids[][3] = {{50, 30, 50}, {100, 60, 100}, {200, 120, 200}};
   for (const auto& g : grids) {
     const std::string name = "walkthrough/grid:" + std::to_string(g[0]) + "x" +
