@@ -72,6 +72,7 @@ int run_replay(const ReplayArgs& args) {
 
   SceneOptions options;
   if (args.tbv_period) options.tbv_period = *args.tbv_period;
+  options.occlusion_buffer = args.occlusion_buffer;
   if (!args.grid.empty()) {
     int res[3] = {0, 0, 0};
     std::string message;
@@ -95,7 +96,8 @@ int run_replay(const ReplayArgs& args) {
     std::string what = st.message;
     if (!args.grid.empty() && st.field.rfind("grid", 0) == 0) what += " (resolution from --grid)";
     // A --grid resolution has no line in the scene file.
-    const bool from_flag = !args.grid.empty() && st.field.rfind("grid", 0) == 0;
+    const bool from_flag = (!args.grid.empty() && st.field.rfind("grid", 0) == 0) ||
+                           st.field == "occlusion_buffer";
     const int line = from_flag || st.field.empty() ? 0 : scene_field_line(text, st.field);
     return report(FormatError{args.scene, line, st.field, what});
   }

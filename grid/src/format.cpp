@@ -1056,6 +1056,13 @@ std::string result_to_json(std::size_t frame_index, const FrameResult& result) {
   count("pvs_size", s.pvs_size);
   out += ",\"early_exit\":";
   out += s.early_exit ? "true" : "false";
+  if (s.ob_width > 0) {
+    // Only with the occlusion buffer on (docs/formats.md).
+    count("ob_width", s.ob_width);
+    count("ob_voxels_culled", s.ob_voxels_culled);
+    count("ob_objects_culled", s.ob_objects_culled);
+    count("ob_occluders", s.ob_occluders);
+  }
   out += "}}";
   return out;
 }

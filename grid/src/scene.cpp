@@ -86,6 +86,11 @@ Status validate_desc(const SceneDesc& d, const SceneOptions& opt) {
     return Status::Error("tbv_max_voxels", "must be finite and >= tbv_voxels");
   if (!(opt.tbv_max_period > 0.0) || !std::isfinite(opt.tbv_max_period))
     return Status::Error("tbv_max_period", "must be finite and > 0");
+  if (opt.occlusion_buffer != 0 &&
+      (opt.occlusion_buffer < 8 || opt.occlusion_buffer > detail::OcclusionBuffer::kMaxSide))
+    return Status::Error("occlusion_buffer", "must be 0 (off) or a width in pixels from 8 to " +
+                                                 std::to_string(detail::OcclusionBuffer::kMaxSide) +
+                                                 ", got " + std::to_string(opt.occlusion_buffer));
 
   std::unordered_map<ObjectId, std::size_t> seen;
   seen.reserve(d.objects.size());

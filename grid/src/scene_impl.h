@@ -23,6 +23,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "occlusion_buffer.h"
 #include "voxvis/scene.h"
 
 namespace voxvis {
@@ -114,6 +115,8 @@ struct Scratch::Impl {
   std::vector<std::uint32_t> reveals;
   /// TBVs the traversal reached, revealed after it (Scene::frame, phase 3).
   std::vector<std::uint32_t> deferred;
+  /// The frame's occlusion buffer (off unless SceneOptions::occlusion_buffer).
+  detail::OcclusionBuffer ob;
 
   /// Starts a frame for a scene of `voxels` voxels and `objects` slots.
   void begin(std::size_t voxels, std::size_t objects);

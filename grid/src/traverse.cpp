@@ -115,8 +115,26 @@ class Traversal {
     seen = w_.frame;
     const Obj& o = s_.objs[slot];
     if (!wf_.may_intersect_box(o.box_lo(), o.box_hi())) return;
+    detail::OcclusionBuffer& ob = w_.ob;
+    if (ob.on()) {
+      if (ob.hides_world(o.box_lo(), o.box_hi())) {
+        ++st_.ob_objects_culled;
+        return;
+      }
+      // Every object the frame finds is an occluder, at the position the
+      // scene has for it (the one it is visible at).
+      const bool wrote = o.shape == Shape::Sphere ? ob.render_sphere(o.center, o.radius)
+                                                  : ob.render_box(o.box_lo(), o.box_hi());
+      if (wrote) ++st_.ob_occluders;
+    }
     w_.obj_mark[slot] = w_.frame;
     w_.pvs.push_back(slot);
+  }
+  /// Whether the occlusion buffer proves every point of local voxel v hidden.
+  bool ob_hides_voxel(const std::int64_t v[3]) const {
+    const Vec3 rel{(static_cast<double>(v[0]) - lf_.e.x) * vs_.x, (static_cast<double>(v[1]) - lf_.e.y) * vs_.y,
+                   (static_cast<double>(v[2]) - lf_.e.z) * vs_.z};
+    return w_.ob.hides(rel, vs_, depth_tol_);
   }
   bool in_grid(const std::int64_t v[3]) const {
     return v[0] >= glo_[0] && v[0] <= ghi_[0] && v[1] >= glo_[1] && v[1] <= ghi_[1] &&
@@ -167,6 +185,8 @@ class Traversal {
   bool eye_inside_ = false;
   double tol_ = 0.0;        ///< Local grid units.
   double depth_tol_ = 0.0;  ///< World units.
+  Vec3 vs_{1.0};            ///< Voxel size, world units.
+  bool ob_on_ = false;
   bool has_dyn_ = false;
   ExitTable prev_, half_;  ///< Exits on shell m-1 and on shell m/2.
   IBox face_live_[6]{};
@@ -295,6 +315,14 @@ void Traversal::reveal_in_frame(std::uint32_t slot) {
   // voxels do not occlude in this frame), so deferring keeps the frame
   // conservative while the traversal stays read-only.
   if (w_.obj_seen[slot] == w_.frame) return;  // Already handled this frame.
+  const Obj& o = s_.objs[slot];
+  if (w_.ob.on() && w_.ob.hides_world(o.tbv_lo, o.tbv_hi)) {
+    // Every position the object can reach before the TBV expires is hidden
+    // now: nothing to reveal, and the object (inside the TBV) is hidden too.
+    w_.obj_seen[slot] = w_.frame;
+    ++st_.ob_objects_culled;
+    return;
+  }
   w_.deferred.push_back(slot);
   add(slot);
 }
@@ -428,6 +456,13 @@ void Traversal::visit_row(int face, int a, int b, int d, std::int64_t la, std::i
       stamp = static_cast<std::uint8_t>(tag_ | kBlocked);
       continue;
     }
+    // The occlusion buffer only adds occlusion: a voxel it proves hidden
+    // reads as occluded, exactly as one the shells prove hidden.
+    if (ob_on_ && ob_hides_voxel(v)) {
+      stamp = static_cast<std::uint8_t>(tag_ | kBlocked);
+      ++st_.ob_voxels_culled;
+      continue;
+    }
     const std::uint8_t flags = flags_arr[static_cast<std::size_t>(idx)];
     bool blocking = false;
     if (flags & (Scene::Impl::kStaticOpaque | Scene::Impl::kDynOpaque)) {
@@ -495,6 +530,8 @@ void Traversal::run() {
   tol_ = 1e-9 + 64.0 * kUlp * (world_scale / vmin + max_abs(eg) + double(std::max({s_.res.x, s_.res.y, s_.res.z})));
   lf_ = detail::make_local_frustum(wf_, e, g.voxel_size, far_eff, tol_);
   depth_tol_ = 4.0 * tol_ * vmax + 1e-9 * world_scale;
+  vs_ = g.voxel_size;
+  ob_on_ = w_.ob.on();
 
   std::int64_t k0 = 0, kmax = 0;
   for (int a = 0; a < 3; ++a) {
@@ -657,6 +694,8 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
   // the scene, so frames of different viewers run this part in parallel.
   {
     std::shared_lock<std::shared_mutex> lock(s.mu);
+    w.ob.begin(wf, s.options.occlusion_buffer);
+    st.ob_width = static_cast<std::uint32_t>(w.ob.width());
     Traversal trav(s, w, wf, st);
     trav.run();
 
@@ -680,6 +719,10 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
       ++st.outside_tested;
       const Obj& o = s.objs[slot];
       if (!o.under_tbv || !outside_part_visible(wf, s.spec, o.tbv_lo, o.tbv_hi)) continue;
+      if (w.ob.hides_world(o.tbv_lo, o.tbv_hi)) {
+        ++st.ob_objects_culled;
+        continue;
+      }
       w.deferred.push_back(slot);
       if (w.obj_mark[slot] != w.frame && wf.may_intersect_box(o.box_lo(), o.box_hi())) {
         w.obj_mark[slot] = w.frame;
@@ -693,10 +736,15 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
       ++st.outside_tested;
       const Obj& o = s.objs[slot];
       if (outside_part_visible(wf, s.spec, o.box_lo(), o.box_hi())) {
+        if (w.ob.hides_world(o.box_lo(), o.box_hi())) {
+          ++st.ob_objects_culled;
+          continue;
+        }
         w.obj_mark[slot] = w.frame;
         w.pvs.push_back(slot);
       }
     }
+    w.ob.end();
   }
 
   // Phase 3, exclusive: reveals, claims, new TBVs.

@@ -37,6 +37,11 @@
 //     200-frame camera path each, replayed ping-pong. Counters as for
 //     walkthrough, with exact_mean and vfc_mean on every 10th frame.
 //
+//   walkthrough/grid:100x60x100/ob:W
+//     The same at 100x60x100 with the occlusion buffer W pixels wide
+//     (W = 64, 128, 256); extra counters ob_voxels_mean (voxels the buffer
+//     proved hidden per frame) and ob_objects_mean (objects and TBVs).
+//
 // Filter with --benchmark_filter=walkthrough, hidden_dynamic, indoor or voxel_world.
 #include <benchmark/benchmark.h>
 
@@ -115,7 +120,7 @@ double percentile(std::vector<double> v, double q) {
   return v[i] * (1.0 - w) + v[j] * w;
 }
 
-void BM_Walkthrough(benchmark::State& state, int gx, int gy, int gz) {
+void BM_Walkthrough(benchmark::State& state, int gx, int gy, int gz, int ob) {
   const Walkthrough& w = walkthrough();
   if (w.frames.empty()) {
     state.SkipWithError("empty walkthrough");
@@ -124,7 +129,9 @@ void BM_Walkthrough(benchmark::State& state, int gx, int gy, int gz) {
   SceneDesc desc = w.scene;
   desc.grid = glm::ivec3(gx, gy, gz);
   std::unique_ptr<Scene> scene;
-  if (const Status st = Scene::create(desc, SceneOptions{}, &scene); !st.ok) {
+  SceneOptions options;
+  options.occlusion_buffer = ob;
+  if (const Status st = Scene::create(desc, options, &scene); !st.ok) {
     state.SkipWithError(("Scene::create: " + st.str()).c_str());
     return;
   }
@@ -149,6 +156,7 @@ void BM_Walkthrough(benchmark::State& state, int gx, int gy, int gz) {
   }
   std::vector<double> times;
   double voxels = 0.0;
+  double ob_voxels = 0.0, ob_objects = 0.0;
   double pvs = 0.0;
   std::vector<double> pvs_at(n, -1.0);
   for (auto _ : state) {
@@ -159,6 +167,8 @@ void BM_Walkthrough(benchmark::State& state, int gx, int gy, int gz) {
     }
     times.push_back(result.stats.time_us);
     voxels += static_cast<double>(result.stats.voxels_visited);
+    ob_voxels += static_cast<double>(result.stats.ob_voxels_culled);
+    ob_objects += static_cast<double>(result.stats.ob_objects_culled);
     pvs += static_cast<double>(result.pvs.size());
     if (pvs_at[k] < 0.0) pvs_at[k] = static_cast<double>(result.pvs.size());
     benchmark::DoNotOptimize(result.pvs.data());
@@ -168,6 +178,10 @@ void BM_Walkthrough(benchmark::State& state, int gx, int gy, int gz) {
   state.counters["p99_us"] = percentile(times, 0.99);
   state.counters["voxels_mean"] = voxels / frames;
   state.counters["pvs_mean"] = pvs / frames;
+  if (ob > 0) {
+    state.counters["ob_voxels_mean"] = ob_voxels / frames;
+    state.counters["ob_objects_mean"] = ob_objects / frames;
+  }
   double sub = 0.0;
   int sub_n = 0;
   for (int k : w.sampled) {
@@ -398,7 +412,14 @@ void register_all() {
     const std::string name = "walkthrough/grid:" + std::to_string(g[0]) + "x" +
                              std::to_string(g[1]) + "x" + std::to_string(g[2]);
     // One whole ping-pong cycle of the 300-frame walkthrough per run.
-    benchmark::RegisterBenchmark(name.c_str(), BM_Walkthrough, g[0], g[1], g[2])
+    benchmark::RegisterBenchmark(name.c_str(), BM_Walkthrough, g[0], g[1], g[2], 0)
+        ->Iterations(598)
+        ->Unit(benchmark::kMicrosecond);
+  }
+  // The occlusion buffer at three widths (SceneOptions::occlusion_buffer).
+  for (int ob : {64, 128, 256}) {
+    const std::string name = "walkthrough/grid:100x60x100/ob:" + std::to_string(ob);
+    benchmark::RegisterBenchmark(name.c_str(), BM_Walkthrough, 100, 60, 100, ob)
         ->Iterations(598)
         ->Unit(benchmark::kMicrosecond);
   }

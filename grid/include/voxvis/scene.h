@@ -64,6 +64,11 @@ struct SceneOptions {
   double tbv_max_voxels = 8.0;
   /// Upper bound for any TBV validity period, seconds.
   double tbv_max_period = 60.0;
+  /// Width in pixels of the conservative occlusion buffer each frame renders
+  /// the objects it finds into and tests voxels, objects and TBVs against
+  /// (height from the camera's aspect, square pixels); 0 turns it off.
+  /// 0 or 8..4096 (docs/design.md, "Occlusion buffer").
+  int occlusion_buffer = 0;
 };
 
 /// Counters of one frame. All counts are for this frame only.
@@ -79,6 +84,10 @@ struct FrameStats {
   std::uint32_t outside_tested = 0;   ///< Objects and TBVs beyond the grid tested against the frustum.
   std::uint32_t pvs_size = 0;
   bool early_exit = false;            ///< Traversal stopped at a fully occluded shell.
+  std::uint32_t ob_width = 0;         ///< Occlusion buffer width this frame; 0: off.
+  std::uint64_t ob_voxels_culled = 0; ///< Voxels the occlusion buffer proved hidden.
+  std::uint32_t ob_objects_culled = 0;///< Objects and TBVs it proved hidden.
+  std::uint32_t ob_occluders = 0;     ///< Objects rendered into it (that wrote a pixel).
   double time_us = 0.0;               ///< Engine time for the frame, microseconds.
 };
 

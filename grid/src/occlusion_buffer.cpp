@@ -1,0 +1,311 @@
+// occlusion_buffer.cpp — see occlusion_buffer.h for the rules and why they
+// are conservative.
+#include "occlusion_buffer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <glm/geometric.hpp>
+
+#include "numeric.h"
+
+namespace voxvis::detail {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr double kEps = std::numeric_limits<double>::epsilon();
+/// Relative allowance added to every written bound: far above the rounding
+/// of the entry depths (a near-tangent ray loses about sqrt(eps) of relative
+/// precision in the sphere's quadratic), far below any distance that matters.
+constexpr double kDepthSlack = 1e-7;
+
+/// The smallest float not below d.
+float round_up(double d) {
+  if (!(d < static_cast<double>(std::numeric_limits<float>::max()))) return std::numeric_limits<float>::infinity();
+  float f = static_cast<float>(d);
+  if (static_cast<double>(f) < d) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+  return f;
+}
+
+}  // namespace
+
+void OcclusionBuffer::begin(const WorldFrustum& wf, int width) {
+  if (width <= 0) {
+    w_ = 0;
+    return;
+  }
+  eye_ = wf.eye;
+  f_ = wf.f;
+  r_ = wf.r;
+  u_ = wf.u;
+  tan_x_ = wf.tan_x;
+  tan_y_ = wf.tan_y;
+  near_ = wf.near;
+  const int w = std::clamp(width, 1, kMaxSide);
+  const double hh = std::round(static_cast<double>(w) * wf.tan_y / wf.tan_x);
+  const int h = static_cast<int>(std::clamp(hh, 1.0, static_cast<double>(kMaxSide)));
+  if (w != w_ || h != h_ || px_.empty()) {
+    w_ = w;
+    h_ = h;
+    tw_ = (w + kTile - 1) / kTile;
+    th_ = (h + kTile - 1) / kTile;
+    const auto tiles = static_cast<std::size_t>(tw_) * static_cast<std::size_t>(th_);
+    px_.assign(tiles * kTile * kTile, 0.0f);
+    tile_frame_.assign(tiles, 0u);
+    tile_max_.assign(tiles, std::numeric_limits<float>::infinity());
+    tile_dirty_.assign(tiles, 0);
+  }
+  w_ = w;
+  h_ = h;
+  if (++frame_ == 0) {
+    std::fill(tile_frame_.begin(), tile_frame_.end(), 0u);
+    frame_ = 1;
+  }
+  written_ = 0;
+}
+
+void OcclusionBuffer::write(int i, int j, double d) {
+  const auto t = static_cast<std::size_t>((j / kTile) * tw_ + i / kTile);
+  float* tile = px_.data() + t * kTile * kTile;
+  if (tile_frame_[t] != frame_) {
+    // First write this frame: empty pixels are +inf; pixels beyond the
+    // image's edge are -inf, so that they never raise the tile's maximum.
+    const int bi = (i / kTile) * kTile, bj = (j / kTile) * kTile;
+    for (int y = 0; y < kTile; ++y)
+      for (int x = 0; x < kTile; ++x)
+        tile[y * kTile + x] = (bi + x < w_ && bj + y < h_) ? std::numeric_limits<float>::infinity()
+                                                           : -std::numeric_limits<float>::infinity();
+    tile_frame_[t] = frame_;
+    tile_max_[t] = std::numeric_limits<float>::infinity();
+    tile_dirty_[t] = 0;
+  }
+  float& p = tile[(j % kTile) * kTile + i % kTile];
+  const float v = round_up(d);
+  if (v < p) {
+    p = v;
+    tile_dirty_[t] = 1;
+    ++written_;
+  }
+}
+
+float OcclusionBuffer::pixel(int i, int j) const {
+  const auto t = static_cast<std::size_t>((j / kTile) * tw_ + i / kTile);
+  if (tile_frame_[t] != frame_) return std::numeric_limits<float>::infinity();
+  return px_[t * kTile * kTile + static_cast<std::size_t>((j % kTile) * kTile + i % kTile)];
+}
+
+bool OcclusionBuffer::rect(double x0, double x1, double y0, double y1, int* i0, int* i1, int* j0,
+                           int* j1) const {
+  // Image coordinate x maps to pixel column (x + 1) * W / 2.
+  const double sw = 0.5 * w_, sh = 0.5 * h_;
+  const double a0 = std::floor((x0 + 1.0) * sw), a1 = std::floor((x1 + 1.0) * sw);
+  const double b0 = std::floor((y0 + 1.0) * sh), b1 = std::floor((y1 + 1.0) * sh);
+  if (!(a1 >= 0.0) || !(a0 <= w_ - 1.0) || !(b1 >= 0.0) || !(b0 <= h_ - 1.0)) return false;
+  *i0 = static_cast<int>(std::max(a0, 0.0));
+  *i1 = static_cast<int>(std::min(a1, w_ - 1.0));
+  *j0 = static_cast<int>(std::max(b0, 0.0));
+  *j1 = static_cast<int>(std::min(b1, h_ - 1.0));
+  return true;
+}
+
+template <class Entry>
+bool OcclusionBuffer::fill(int i0, int i1, int j0, int j1, double nearest, Entry&& entry) {
+  const int nc = i1 - i0 + 2, nr = j1 - j0 + 2;
+  corner_t_.resize(static_cast<std::size_t>(nc) * static_cast<std::size_t>(nr));
+  // Corner (i, j) is the image point (2i/W - 1, 2j/H - 1); neighbours share
+  // the very same corner rays, so the pixels' squares tile the image.
+  for (int jj = 0; jj < nr; ++jj) {
+    const double yc = 2.0 * (j0 + jj) / h_ - 1.0;
+    const Vec3 fy = f_ + (yc * tan_y_) * u_;
+    for (int ii = 0; ii < nc; ++ii) {
+      const double xc = 2.0 * (i0 + ii) / w_ - 1.0;
+      const Vec3 d = fy + (xc * tan_x_) * r_;
+      double t = -1.0;
+      if (!entry(d, &t)) t = -1.0;
+      corner_t_[static_cast<std::size_t>(jj * nc + ii)] = t;
+    }
+  }
+  bool any = false;
+  for (int j = j0; j <= j1; ++j) {
+    const double* c0 = corner_t_.data() + static_cast<std::ptrdiff_t>(j - j0) * nc;
+    const double* c1 = c0 + nc;
+    for (int i = i0; i <= i1; ++i) {
+      const int k = i - i0;
+      const double t[4] = {c0[k], c0[k + 1], c1[k], c1[k + 1]};
+      int hits = 0;
+      double tmax = 0.0;
+      for (double v : t) {
+        if (v > 0.0) {
+          ++hits;
+          tmax = std::fmax(tmax, v);
+        }
+      }
+      double d;
+      if (fault == BufferFault::OuterCoverage) {
+        if (hits == 0) continue;
+        d = tmax;
+      } else {
+        if (hits < 4) continue;  // Inner coverage: all four corner rays hit.
+        d = fault == BufferFault::NearDepth ? nearest : tmax;
+      }
+      write(i, j, d);
+      any = true;
+    }
+  }
+  return any;
+}
+
+bool OcclusionBuffer::render_sphere(const Vec3& c, double radius) {
+  if (!on()) return false;
+  const Vec3 w = c - eye_;
+  const double mag = max_abs(eye_) + max_abs(c) + radius;
+  const double zc = glm::dot(f_, w);
+  // Only an occluder wholly beyond the near plane may occlude.
+  if (!(zc - radius >= near_ + 1e-9 * mag)) return false;
+  const double ww = glm::dot(w, w);
+  // Shrink so that a rounding error in the hit test can only drop a pixel:
+  // the discriminant's error is a few eps * |d|^2 |w|^2, the shrink moves it
+  // by about 2 |d|^2 r delta.
+  const double delta = 1e-9 * mag + 16.0 * kEps * ww / radius;
+  const double rs = radius - delta;
+  if (!(rs > 0.5 * radius)) return false;
+  const double cc = ww - rs * rs;
+  // Image rectangle of the ball: tangent slopes in the planes of x and y.
+  const double xc = glm::dot(r_, w), yc = glm::dot(u_, w);
+  const double den = zc * zc - radius * radius;
+  const double sx = radius * std::sqrt(std::fmax(0.0, xc * xc + den));
+  const double sy = radius * std::sqrt(std::fmax(0.0, yc * yc + den));
+  int i0, i1, j0, j1;
+  if (!rect((xc * zc - sx) / den / tan_x_, (xc * zc + sx) / den / tan_x_, (yc * zc - sy) / den / tan_y_,
+            (yc * zc + sy) / den / tan_y_, &i0, &i1, &j0, &j1))
+    return false;
+  const double abs_slack = 1e-9 * mag;
+  return fill(i0, i1, j0, j1, zc - radius, [&](const Vec3& d, double* t) {
+    const double a = glm::dot(d, d);
+    const double b = glm::dot(d, w);
+    if (!(b > 0.0)) return false;
+    const double disc = b * b - a * cc;
+    if (!(disc >= 0.0)) return false;
+    const double te = cc / (b + std::sqrt(disc));  // Entry parameter = depth (d·f = 1).
+    *t = te * (1.0 + kDepthSlack) + abs_slack;
+    return true;
+  });
+}
+
+bool OcclusionBuffer::render_box(const Vec3& lo, const Vec3& hi) {
+  if (!on()) return false;
+  const double mag = max_abs(eye_) + max_abs(lo) + max_abs(hi);
+  const double delta = 1e-9 * mag;
+  const Vec3 L = lo + delta - eye_, H = hi - delta - eye_;
+  if (!(L.x < H.x && L.y < H.y && L.z < H.z)) return false;  // Too thin to trust.
+  const Vec3 size = H - L;
+  double zmin = glm::dot(f_, L);
+  for (int a = 0; a < 3; ++a) zmin += std::fmin(0.0, f_[a] * size[a]);
+  if (!(zmin >= near_ + 1e-9 * mag)) return false;  // Wholly beyond the near plane only.
+  double x0 = kInf, x1 = -kInf, y0 = kInf, y1 = -kInf;
+  for (int k = 0; k < 8; ++k) {
+    const Vec3 p{(k & 1) ? H.x : L.x, (k & 2) ? H.y : L.y, (k & 4) ? H.z : L.z};
+    const double z = glm::dot(f_, p);
+    const double x = glm::dot(r_, p) / (z * tan_x_), y = glm::dot(u_, p) / (z * tan_y_);
+    x0 = std::fmin(x0, x), x1 = std::fmax(x1, x);
+    y0 = std::fmin(y0, y), y1 = std::fmax(y1, y);
+  }
+  int i0, i1, j0, j1;
+  if (!rect(x0, x1, y0, y1, &i0, &i1, &j0, &j1)) return false;
+  const double abs_slack = 1e-9 * mag;
+  return fill(i0, i1, j0, j1, zmin, [&](const Vec3& d, double* t) {
+    double tin = 0.0, tout = kInf, err = 0.0;
+    for (int a = 0; a < 3; ++a) {
+      if (d[a] == 0.0) {
+        if (L[a] > 0.0 || H[a] < 0.0) return false;
+        continue;
+      }
+      const double inv = 1.0 / d[a];
+      double ta = L[a] * inv, tb = H[a] * inv;
+      if (ta > tb) std::swap(ta, tb);
+      if (ta > tin) {
+        tin = ta;
+        err = 4.0 * kEps * mag * std::fabs(inv);  // The face's coordinate is good to eps * mag.
+      }
+      tout = std::fmin(tout, tb);
+    }
+    if (!(tin <= tout) || !(tin > 0.0)) return false;
+    *t = tin * (1.0 + kDepthSlack) + abs_slack + err;
+    return true;
+  });
+}
+
+bool OcclusionBuffer::hides(const Vec3& rel, const Vec3& size, double tol) const {
+  if (!on() || written_ == 0) return false;
+  tol += 4.0 * kEps * (max_abs(rel) + max_abs(size));
+  double zmin = glm::dot(f_, rel);
+  for (int a = 0; a < 3; ++a) zmin += std::fmin(0.0, f_[a] * size[a]);
+  zmin -= 2.0 * tol;
+  if (!(zmin > near_)) return false;  // Crossing the near plane or behind the eye.
+  const double X0 = glm::dot(r_, rel), Y0 = glm::dot(u_, rel), Z0 = glm::dot(f_, rel);
+  {
+    // Quick rejection: the pixel of the box's centre must hold a nearer
+    // bound (a necessary condition only, so any rounding is harmless).
+    const Vec3 ch = 0.5 * size;
+    const double zc = Z0 + glm::dot(f_, ch);
+    const double xi = ((X0 + glm::dot(r_, ch)) / (zc * tan_x_) + 1.0) * 0.5 * w_;
+    const double yi = ((Y0 + glm::dot(u_, ch)) / (zc * tan_y_) + 1.0) * 0.5 * h_;
+    if (xi >= 0.0 && xi < w_ && yi >= 0.0 && yi < h_) {
+      const int i = static_cast<int>(xi), j = static_cast<int>(yi);
+      const auto t = static_cast<std::size_t>((j / kTile) * tw_ + i / kTile);
+      if (tile_frame_[t] != frame_) return false;
+      if (!(static_cast<double>(px_[t * kTile * kTile + static_cast<std::size_t>((j % kTile) * kTile + i % kTile)]) < zmin))
+        return false;
+    }
+  }
+  double x0 = kInf, x1 = -kInf, y0 = kInf, y1 = -kInf;
+  const Vec3 ex{r_.x * size.x, r_.y * size.y, r_.z * size.z};
+  const Vec3 ey{u_.x * size.x, u_.y * size.y, u_.z * size.z};
+  const Vec3 ez{f_.x * size.x, f_.y * size.y, f_.z * size.z};
+  for (int k = 0; k < 8; ++k) {
+    double X = X0, Y = Y0, Z = Z0;
+    for (int a = 0; a < 3; ++a)
+      if (k & (1 << a)) X += ex[a], Y += ey[a], Z += ez[a];
+    const double iz = 1.0 / Z;
+    x0 = std::fmin(x0, X * iz), x1 = std::fmax(x1, X * iz);
+    y0 = std::fmin(y0, Y * iz), y1 = std::fmax(y1, Y * iz);
+  }
+  // A corner's position is good to tol (world units) in X, Y and Z: its
+  // slope X/Z moves by at most tol (1 + |X/Z|) / Z. Plus a millionth of a
+  // pixel, so that a point on a pixel boundary counts for both pixels.
+  const double ms = 2.0 * tol * (1.0 + std::fmax(std::fabs(x0), std::fabs(x1))) / zmin;
+  const double mt = 2.0 * tol * (1.0 + std::fmax(std::fabs(y0), std::fabs(y1))) / zmin;
+  const double mx = ms / tan_x_ + 2e-6 / w_, my = mt / tan_y_ + 2e-6 / h_;
+  int i0, i1, j0, j1;
+  if (!rect(x0 / tan_x_ - mx, x1 / tan_x_ + mx, y0 / tan_y_ - my, y1 / tan_y_ + my, &i0, &i1, &j0, &j1))
+    return false;
+  for (int tj = j0 / kTile; tj <= j1 / kTile; ++tj) {
+    for (int ti = i0 / kTile; ti <= i1 / kTile; ++ti) {
+      const auto t = static_cast<std::size_t>(tj * tw_ + ti);
+      if (tile_frame_[t] != frame_) return false;  // Empty tile.
+      const float* tile = px_.data() + t * kTile * kTile;
+      if (tile_dirty_[t]) {
+        float m = -std::numeric_limits<float>::infinity();
+        for (int k = 0; k < kTile * kTile; ++k) m = std::fmax(m, tile[k]);
+        tile_max_[t] = m;
+        tile_dirty_[t] = 0;
+      }
+      if (static_cast<double>(tile_max_[t]) < zmin) continue;
+      const int pi0 = std::max(i0, ti * kTile), pi1 = std::min(i1, ti * kTile + kTile - 1);
+      const int pj0 = std::max(j0, tj * kTile), pj1 = std::min(j1, tj * kTile + kTile - 1);
+      for (int j = pj0; j <= pj1; ++j)
+        for (int i = pi0; i <= pi1; ++i)
+          if (!(static_cast<double>(tile[(j % kTile) * kTile + i % kTile]) < zmin)) return false;
+    }
+  }
+  return true;
+}
+
+bool OcclusionBuffer::hides_world(const Vec3& lo, const Vec3& hi) const {
+  if (!on() || written_ == 0) return false;
+  const double tol = 1e-12 * (max_abs(lo) + max_abs(hi) + max_abs(eye_) + 1.0);
+  return hides(lo - eye_, hi - lo, tol);
+}
+
+}  // namespace voxvis::detail
