@@ -138,7 +138,7 @@ bool OcclusionBuffer::fill(int i0, int i1, int j0, int j1, double nearest, Entry
       for (double v : t) {
         if (v > 0.0) {
           ++hits;
-          tmax = std::fmax(tmax, v);
+          tmax = std::max(tmax, v);
         }
       }
       double d;
@@ -240,7 +240,7 @@ bool OcclusionBuffer::hides(const Vec3& rel, const Vec3& size, double tol) const
   if (!on() || written_ == 0) return false;
   tol += 4.0 * kEps * (max_abs(rel) + max_abs(size));
   double zmin = glm::dot(f_, rel);
-  for (int a = 0; a < 3; ++a) zmin += std::fmin(0.0, f_[a] * size[a]);
+  for (int a = 0; a < 3; ++a) zmin += std::min(0.0, f_[a] * size[a]);
   zmin -= 2.0 * tol;
   if (!(zmin > near_)) return false;  // Crossing the near plane or behind the eye.
   const double X0 = glm::dot(r_, rel), Y0 = glm::dot(u_, rel), Z0 = glm::dot(f_, rel);
@@ -259,23 +259,24 @@ bool OcclusionBuffer::hides(const Vec3& rel, const Vec3& size, double tol) const
         return false;
     }
   }
-  double x0 = kInf, x1 = -kInf, y0 = kInf, y1 = -kInf;
-  const Vec3 ex{r_.x * size.x, r_.y * size.y, r_.z * size.z};
-  const Vec3 ey{u_.x * size.x, u_.y * size.y, u_.z * size.z};
-  const Vec3 ez{f_.x * size.x, f_.y * size.y, f_.z * size.z};
-  for (int k = 0; k < 8; ++k) {
-    double X = X0, Y = Y0, Z = Z0;
-    for (int a = 0; a < 3; ++a)
-      if (k & (1 << a)) X += ex[a], Y += ey[a], Z += ez[a];
-    const double iz = 1.0 / Z;
-    x0 = std::fmin(x0, X * iz), x1 = std::fmax(x1, X * iz);
-    y0 = std::fmin(y0, Y * iz), y1 = std::fmax(y1, Y * iz);
+  // The box's X, Y and Z ranges bound its corners' slopes X/Z and Y/Z:
+  // with Z in [zlo, zhi], zlo > 0, X/Z lies in [Xlo / (Xlo < 0 ? zlo : zhi),
+  // Xhi / (Xhi > 0 ? zlo : zhi)] (a superset of the corners' hull).
+  double xlo = X0, xhi = X0, ylo = Y0, yhi = Y0, zlo = Z0, zhi = Z0;
+  for (int a = 0; a < 3; ++a) {
+    const double ex = r_[a] * size[a], ey = u_[a] * size[a], ez = f_[a] * size[a];
+    (ex < 0.0 ? xlo : xhi) += ex;
+    (ey < 0.0 ? ylo : yhi) += ey;
+    (ez < 0.0 ? zlo : zhi) += ez;
   }
+  const double izlo = 1.0 / zlo, izhi = 1.0 / zhi;
+  const double x0 = xlo * (xlo < 0.0 ? izlo : izhi), x1 = xhi * (xhi > 0.0 ? izlo : izhi);
+  const double y0 = ylo * (ylo < 0.0 ? izlo : izhi), y1 = yhi * (yhi > 0.0 ? izlo : izhi);
   // A corner's position is good to tol (world units) in X, Y and Z: its
   // slope X/Z moves by at most tol (1 + |X/Z|) / Z. Plus a millionth of a
   // pixel, so that a point on a pixel boundary counts for both pixels.
-  const double ms = 2.0 * tol * (1.0 + std::fmax(std::fabs(x0), std::fabs(x1))) / zmin;
-  const double mt = 2.0 * tol * (1.0 + std::fmax(std::fabs(y0), std::fabs(y1))) / zmin;
+  const double ms = 2.0 * tol * (1.0 + std::max(std::fabs(x0), std::fabs(x1))) / zmin;
+  const double mt = 2.0 * tol * (1.0 + std::max(std::fabs(y0), std::fabs(y1))) / zmin;
   const double mx = ms / tan_x_ + 2e-6 / w_, my = mt / tan_y_ + 2e-6 / h_;
   int i0, i1, j0, j1;
   if (!rect(x0 / tan_x_ - mx, x1 / tan_x_ + mx, y0 / tan_y_ - my, y1 / tan_y_ + my, &i0, &i1, &j0, &j1))
@@ -287,7 +288,7 @@ bool OcclusionBuffer::hides(const Vec3& rel, const Vec3& size, double tol) const
       const float* tile = px_.data() + t * kTile * kTile;
       if (tile_dirty_[t]) {
         float m = -std::numeric_limits<float>::infinity();
-        for (int k = 0; k < kTile * kTile; ++k) m = std::fmax(m, tile[k]);
+        for (int k = 0; k < kTile * kTile; ++k) m = std::max(m, tile[k]);
         tile_max_[t] = m;
         tile_dirty_[t] = 0;
       }

@@ -1,0 +1,241 @@
+// The conservative occlusion buffer (grid/src/occlusion_buffer.h): unit tests
+// of its two rules, a property test of the written bounds against exact ray
+// intersections, the engine with the buffer on against the ray caster (zero
+// misses), and deliberately broken rules that the ray caster must catch.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+
+#include <glm/geometric.hpp>
+
+#include "engine_check.h"
+#include "frustum.h"
+#include "occlusion_buffer.h"
+#include "raycast.h"
+#include "scene_impl.h"
+#include "scenes.h"
+
+namespace voxvis::test {
+namespace {
+
+using detail::BufferFault;
+using detail::OcclusionBuffer;
+
+Camera look_down_z(double fov = 60.0, double aspect = 1.0, double near = 0.1) {
+  Camera c;
+  c.eye = Vec3(0.0);
+  c.dir = Vec3(0.0, 0.0, -1.0);
+  c.up = Vec3(0.0, 1.0, 0.0);
+  c.fov_y_deg = fov;
+  c.aspect = aspect;
+  c.near = near;
+  c.far = 1000.0;
+  return c;
+}
+
+OcclusionBuffer begin(const Camera& c, int width) {
+  OcclusionBuffer ob;
+  ob.begin(detail::make_world_frustum(c), width);
+  return ob;
+}
+
+TEST(OcclusionBuffer, SphereInFrontOfABoxHidesIt) {
+  OcclusionBuffer ob = begin(look_down_z(), 128);
+  ASSERT_TRUE(ob.render_sphere(Vec3(0, 0, -10), 3.0));
+  EXPECT_TRUE(ob.hides_world(Vec3(-0.5, -0.5, -20), Vec3(0.5, 0.5, -19)));
+  // In front of the sphere, or reaching into it: not hidden.
+  EXPECT_FALSE(ob.hides_world(Vec3(-0.5, -0.5, -6), Vec3(0.5, 0.5, -5)));
+  EXPECT_FALSE(ob.hides_world(Vec3(-0.5, -0.5, -20), Vec3(0.5, 0.5, -6.9)));  // Sphere front at 7.
+  EXPECT_TRUE(ob.hides_world(Vec3(-0.5, -0.5, -20), Vec3(0.5, 0.5, -7.5)));  // Inside the ball.
+  // Beside it: not hidden.
+  EXPECT_FALSE(ob.hides_world(Vec3(8, -0.5, -20), Vec3(9, 0.5, -19)));
+}
+
+TEST(OcclusionBuffer, BoxPeekingOutByAFractionOfAPixelIsNotHidden) {
+  // A box occluder x, y in [-2, 2] at z = -10 covers image x in [-0.2, 0.2]
+  // at fov 90 (tan = 1). At 100 pixels a pixel is 0.02 wide.
+  OcclusionBuffer ob = begin(look_down_z(90.0), 100);
+  ASSERT_TRUE(ob.render_box(Vec3(-2, -2, -11), Vec3(2, 2, -10)));
+  // Behind it at z in [-21, -20] the silhouette reaches |x| = 2 * 20 / 10 =
+  // 4 (at the occluder's front face depth the slope is 0.2). A box wholly
+  // within slope 0.16 is hidden; one reaching slope 0.2 + 0.1 pixel is not.
+  EXPECT_TRUE(ob.hides_world(Vec3(-3.2, -3.2, -21), Vec3(3.2, 3.2, -20)));
+  const double peek = (0.2 + 0.1 * 0.02) * 20.0;
+  EXPECT_FALSE(ob.hides_world(Vec3(-1, -1, -21), Vec3(peek, 1, -20)));
+  EXPECT_FALSE(ob.hides_world(Vec3(-1, -peek, -21), Vec3(1, 1, -20)));
+}
+
+TEST(OcclusionBuffer, OccludersCrossingTheNearPlaneWriteNothing) {
+  OcclusionBuffer ob = begin(look_down_z(60.0, 1.0, 1.0), 64);
+  EXPECT_FALSE(ob.render_sphere(Vec3(0, 0, -1.5), 1.0));  // Nearest depth 0.5 < near.
+  EXPECT_FALSE(ob.render_box(Vec3(-5, -5, -3), Vec3(5, 5, -0.5)));
+  EXPECT_FALSE(ob.hides_world(Vec3(-0.1, -0.1, -30), Vec3(0.1, 0.1, -29)));
+  // Wholly beyond it: writes, and a tested box crossing the near plane is
+  // never hidden.
+  ASSERT_TRUE(ob.render_box(Vec3(-50, -50, -3), Vec3(50, 50, -2)));
+  EXPECT_TRUE(ob.hides_world(Vec3(-0.1, -0.1, -30), Vec3(0.1, 0.1, -29)));
+  EXPECT_FALSE(ob.hides_world(Vec3(-0.1, -0.1, -30), Vec3(0.1, 0.1, -0.5)));
+  EXPECT_FALSE(ob.hides_world(Vec3(-0.1, -0.1, 1), Vec3(0.1, 0.1, 2)));  // Behind the eye.
+}
+
+TEST(OcclusionBuffer, EyeInsideAnOccludersBoxWritesNothing) {
+  OcclusionBuffer ob = begin(look_down_z(), 64);
+  EXPECT_FALSE(ob.render_box(Vec3(-1, -1, -1), Vec3(1, 1, 1)));
+  EXPECT_FALSE(ob.render_sphere(Vec3(0, 0, -0.5), 1.0));
+  EXPECT_FALSE(ob.hides_world(Vec3(-0.1, -0.1, -30), Vec3(0.1, 0.1, -29)));
+}
+
+/// Every ray through a written pixel must enter the occluder (beyond near)
+/// at a depth no greater than the pixel's bound: sampled inside pixels and
+/// exactly on their corners and edges, for random cameras, lenses and shapes.
+TEST(OcclusionBuffer, WrittenBoundsHoldForEveryRayOfThePixel) {
+  Rng rng(42);
+  int checked = 0;
+  for (int trial = 0; trial < scaled(300); ++trial) {
+    Camera cam;
+    cam.eye = rng.in_box(Vec3(-5), Vec3(5));
+    cam.dir = rng.unit_vector();
+    cam.up = rng.unit_vector();
+    if (!validate_camera(cam).ok) continue;
+    const int lens = rng.uniform_int(0, 3);
+    cam.fov_y_deg = lens == 0 ? rng.uniform(1.0, 5.0) : lens == 1 ? rng.uniform(160.0, 179.0) : rng.uniform(20.0, 120.0);
+    cam.aspect = rng.chance(0.2) ? rng.log_uniform(0.01, 100.0) : rng.uniform(0.5, 2.5);
+    cam.near = rng.log_uniform(1e-3, 1.0);
+    ViewBasis vb;
+    ASSERT_TRUE(make_basis(cam, &vb));
+    const int width = rng.chance(0.5) ? 16 : 64;
+    OcclusionBuffer ob = begin(cam, width);
+    ObjectDesc o;
+    const Vec3 at = cam.eye + glm::normalize(cam.dir) * rng.uniform(1.0, 20.0) + rng.in_box(Vec3(-3), Vec3(3));
+    if (rng.chance(0.5)) {
+      o = sphere(1, at, rng.log_uniform(0.05, 5.0));
+      ob.render_sphere(o.center, o.radius);
+    } else {
+      o = box_around(1, at, rng.in_box(Vec3(0.05), Vec3(4.0)));
+      ob.render_box(o.center - o.half_extent, o.center + o.half_extent);
+    }
+    for (int j = 0; j < ob.height(); ++j) {
+      for (int i = 0; i < ob.width(); ++i) {
+        const float bound = ob.pixel(i, j);
+        if (std::isinf(bound)) continue;
+        for (int s = 0; s < 12; ++s) {
+          // Corners and edges of the pixel, then random points inside.
+          const double fx = s < 4 ? (s & 1) : s < 8 ? (s & 1) * 0.5 + (s & 2) * 0.25 : rng.uniform();
+          const double fy = s < 4 ? (s >> 1) : s < 8 ? ((s >> 1) & 1) : rng.uniform();
+          const double x = 2.0 * (i + fx) / ob.width() - 1.0, y = 2.0 * (j + fy) / ob.height() - 1.0;
+          double t0 = 0.0, t1 = 0.0;
+          ASSERT_TRUE(intersect(o, vb.eye, vb.ray_dir(x, y), &t0, &t1))
+              << "pixel " << i << "," << j << " written but a ray misses: " << describe(cam) << " " << describe(o);
+          EXPECT_GE(t0, cam.near) << describe(cam) << " " << describe(o);
+          ASSERT_LE(t0, static_cast<double>(bound))
+              << "pixel " << i << "," << j << " bound too near: " << describe(cam) << " " << describe(o);
+          ++checked;
+        }
+      }
+    }
+  }
+  EXPECT_GT(checked, 1000);
+}
+
+SceneOptions with_buffer(std::uint64_t seed, int width) {
+  Rng rng(mix_seed(seed, 0x0971));
+  SceneOptions opt;
+  if (rng.uniform_int(0, 1) == 1) opt.tbv_period = rng.uniform(0.01, 0.2);
+  opt.occlusion_buffer = width;
+  return opt;
+}
+
+/// Random scenes, camera paths (eyes on voxel planes, extreme lenses, large
+/// near planes) and moving objects with the buffer on: zero misses.
+void run_scenes(int width, std::uint64_t first, int count, const CameraPathParams& params,
+                BufferFault fault, int* misses, std::uint64_t* culled) {
+  constexpr double kDt = 1.0 / 30.0;
+  for (int k = 0; k < count; ++k) {
+    const std::uint64_t seed = first + static_cast<std::uint64_t>(k);
+    const SceneDesc scene = random_scene(random_scene_params(seed), seed);
+    const std::string label = describe_scene(scene, seed) + " ob=" + std::to_string(width);
+    EngineHarness h(scene, with_buffer(seed, width), label);
+    ASSERT_TRUE(h.status().ok) << h.status().str();
+    h.scratch().impl().ob.fault = fault;
+    const std::vector<Camera> path = random_camera_path(scene, seed, params);
+    Mover mover(scene, seed);
+    for (int f = 0; f < params.frames; ++f) {
+      const double t = f * kDt;
+      if (f > 0) {
+        ASSERT_TRUE(h.move(t, mover.step(kDt)).ok);
+      }
+      const std::string err = h.frame(path[static_cast<std::size_t>(f)], t);
+      *culled += h.last().stats.ob_voxels_culled + h.last().stats.ob_objects_culled;
+      if (!err.empty()) {
+        ++*misses;
+        if (fault == BufferFault::None) FAIL() << err;
+        break;  // A broken buffer: one miss per scene is enough.
+      }
+      EXPECT_EQ(h.last().stats.ob_width, static_cast<std::uint32_t>(width));
+    }
+  }
+}
+
+TEST(OcclusionBuffer, EngineWithBufferHasZeroMisses) {
+  for (int width : {64, 256}) {
+    SCOPED_TRACE("width " + std::to_string(width));
+    int misses = 0;
+    std::uint64_t culled = 0;
+    CameraPathParams p;
+    p.frames = std::max(2, scaled(20));
+    run_scenes(width, 7000, scaled(30), p, BufferFault::None, &misses, &culled);
+    if (HasFatalFailure()) return;
+    EXPECT_EQ(misses, 0);
+    EXPECT_GT(culled, 0u) << "the buffer never culled anything: the test proves nothing";
+  }
+}
+
+TEST(OcclusionBuffer, EngineWithBufferAndLargeNearPlanesHasZeroMisses) {
+  int misses = 0;
+  std::uint64_t culled = 0;
+  CameraPathParams p;
+  p.frames = std::max(2, scaled(15));
+  p.near_min = 0.02;
+  p.near_max = 0.4;
+  p.snap_eye_chance = 0.5;
+  p.extreme_lens_chance = 0.3;
+  run_scenes(128, 7500, scaled(15), p, BufferFault::None, &misses, &culled);
+  EXPECT_EQ(misses, 0);
+}
+
+TEST(OcclusionBuffer, NonConservativeBuffersAreCaught) {
+  // The same harness with a rule flipped must report misses: the ray caster
+  // sees what a wrong buffer hides.
+  for (BufferFault fault : {BufferFault::NearDepth, BufferFault::OuterCoverage}) {
+    SCOPED_TRACE(fault == BufferFault::NearDepth ? "near depth" : "outer coverage");
+    int misses = 0;
+    std::uint64_t culled = 0;
+    CameraPathParams p;
+    p.frames = 20;
+    run_scenes(64, 7000, 30, p, fault, &misses, &culled);
+    EXPECT_GT(misses, 0) << "a non-conservative buffer went unnoticed";
+  }
+}
+
+TEST(OcclusionBuffer, OptionIsValidated) {
+  SceneDesc d;
+  d.bounds_max = Vec3(10.0);
+  d.objects.push_back(sphere(1, Vec3(5.0), 1.0));
+  std::unique_ptr<Scene> s;
+  for (int bad : {-1, 1, 7, 4097}) {
+    SceneOptions o;
+    o.occlusion_buffer = bad;
+    const Status st = Scene::create(d, o, &s);
+    EXPECT_FALSE(st.ok) << bad;
+    EXPECT_EQ(st.field, "occlusion_buffer");
+  }
+  for (int good : {0, 8, 4096}) {
+    SceneOptions o;
+    o.occlusion_buffer = good;
+    EXPECT_TRUE(Scene::create(d, o, &s).ok) << good;
+  }
+}
+
+}  // namespace
+}  // namespace voxvis::test
