@@ -26,13 +26,22 @@ void store_max(std::atomic<double>& a, double v) {
   }
 }
 
-/// Parses a raw unary request into a new call; null after answering
-/// INVALID_ARGUMENT when the bytes are not a Req.
+/// Starts a raw unary call: checks the token's role, takes a place among the
+/// calls in progress and parses the request. Null after answering the call
+/// (UNAUTHENTICATED, PERMISSION_DENIED, RESOURCE_EXHAUSTED, or
+/// INVALID_ARGUMENT when the bytes are not a Req); `*reactor` is the call's
+/// reactor either way.
 template <class Req, class Resp>
-TypedUnaryCall<Req, Resp>* start_call(Service* svc, const char* method, const grpc::ByteBuffer* in,
-                                      grpc::ByteBuffer* out, grpc::ServerUnaryReactor** reactor) {
+TypedUnaryCall<Req, Resp>* start_call(Service* svc, const char* method,
+                                      grpc::CallbackServerContext* ctx, Role role,
+                                      const grpc::ByteBuffer* in, grpc::ByteBuffer* out,
+                                      grpc::ServerUnaryReactor** reactor) {
   auto* call = new TypedUnaryCall<Req, Resp>(out);
   *reactor = call;
+  if (grpc::Status denied = svc->tokens().authorize(ctx, role); !denied.ok()) {
+    svc->finish_unary(call, method, denied);
+    return nullptr;
+  }
   if (grpc::Status busy = svc->enter_call(); !busy.ok()) {
     svc->finish_unary(call, method, busy);
     return nullptr;
@@ -310,14 +319,11 @@ void Service::save_positions() {
 grpc::ServerUnaryReactor* Service::CreateScene(grpc::CallbackServerContext* ctx,
                                                const grpc::ByteBuffer* in, grpc::ByteBuffer* out) {
   grpc::ServerUnaryReactor* reactor = nullptr;
-  auto* r = start_call<v1::CreateSceneRequest, v1::SceneInfo>(this, "CreateScene", in, out, &reactor);
+  auto* r = start_call<v1::CreateSceneRequest, v1::SceneInfo>(
+      this, "CreateScene", ctx, Role::Admin, in, out, &reactor);
   if (!r) return reactor;
   const v1::CreateSceneRequest* req = &r->req;
   v1::SceneInfo* resp = &r->resp;
-  if (grpc::Status a = tokens_.authorize(ctx, Role::Admin); !a.ok()) {
-    finish_unary(r, "CreateScene", a);
-    return reactor;
-  }
   if (grpc::Status s = check_scene_id(req->scene_id()); !s.ok()) {
     finish_unary(r, "CreateScene", s);
     return reactor;
@@ -363,13 +369,10 @@ grpc::ServerUnaryReactor* Service::CreateScene(grpc::CallbackServerContext* ctx,
 grpc::ServerUnaryReactor* Service::DeleteScene(grpc::CallbackServerContext* ctx,
                                                const grpc::ByteBuffer* in, grpc::ByteBuffer* out) {
   grpc::ServerUnaryReactor* reactor = nullptr;
-  auto* r = start_call<v1::DeleteSceneRequest, v1::DeleteSceneResponse>(this, "DeleteScene", in, out, &reactor);
+  auto* r = start_call<v1::DeleteSceneRequest, v1::DeleteSceneResponse>(
+      this, "DeleteScene", ctx, Role::Admin, in, out, &reactor);
   if (!r) return reactor;
   const v1::DeleteSceneRequest* req = &r->req;
-  if (grpc::Status a = tokens_.authorize(ctx, Role::Admin); !a.ok()) {
-    finish_unary(r, "DeleteScene", a);
-    return reactor;
-  }
   if (grpc::Status s = check_scene_id(req->scene_id()); !s.ok()) {
     finish_unary(r, "DeleteScene", s);
     return reactor;
@@ -425,13 +428,10 @@ grpc::ServerUnaryReactor* Service::DeleteScene(grpc::CallbackServerContext* ctx,
 grpc::ServerUnaryReactor* Service::ListScenes(grpc::CallbackServerContext* ctx,
                                               const grpc::ByteBuffer* in, grpc::ByteBuffer* out) {
   grpc::ServerUnaryReactor* reactor = nullptr;
-  auto* r = start_call<v1::ListScenesRequest, v1::ListScenesResponse>(this, "ListScenes", in, out, &reactor);
+  auto* r = start_call<v1::ListScenesRequest, v1::ListScenesResponse>(
+      this, "ListScenes", ctx, Role::Viewer, in, out, &reactor);
   if (!r) return reactor;
   v1::ListScenesResponse* resp = &r->resp;
-  if (grpc::Status a = tokens_.authorize(ctx, Role::Viewer); !a.ok()) {
-    finish_unary(r, "ListScenes", a);
-    return reactor;
-  }
   std::vector<std::shared_ptr<SceneEntry>> entries;
   {
     std::lock_guard<std::mutex> lock(scenes_mu_);
@@ -445,14 +445,11 @@ grpc::ServerUnaryReactor* Service::ListScenes(grpc::CallbackServerContext* ctx,
 grpc::ServerUnaryReactor* Service::GetSceneStats(grpc::CallbackServerContext* ctx,
                                                  const grpc::ByteBuffer* in, grpc::ByteBuffer* out) {
   grpc::ServerUnaryReactor* reactor = nullptr;
-  auto* r = start_call<v1::GetSceneStatsRequest, v1::SceneInfo>(this, "GetSceneStats", in, out, &reactor);
+  auto* r = start_call<v1::GetSceneStatsRequest, v1::SceneInfo>(
+      this, "GetSceneStats", ctx, Role::Viewer, in, out, &reactor);
   if (!r) return reactor;
   const v1::GetSceneStatsRequest* req = &r->req;
   v1::SceneInfo* resp = &r->resp;
-  if (grpc::Status a = tokens_.authorize(ctx, Role::Viewer); !a.ok()) {
-    finish_unary(r, "GetSceneStats", a);
-    return reactor;
-  }
   std::shared_ptr<SceneEntry> e = find_or_finish(r, "GetSceneStats", req->scene_id());
   if (!e) return reactor;
   fill_info(*e, resp);
@@ -463,14 +460,11 @@ grpc::ServerUnaryReactor* Service::GetSceneStats(grpc::CallbackServerContext* ct
 grpc::ServerUnaryReactor* Service::GetPvs(grpc::CallbackServerContext* ctx,
                                           const grpc::ByteBuffer* in, grpc::ByteBuffer* out) {
   grpc::ServerUnaryReactor* reactor = nullptr;
-  auto* r = start_call<v1::GetPvsRequest, v1::GetPvsResponse>(this, "GetPvs", in, out, &reactor);
+  auto* r = start_call<v1::GetPvsRequest, v1::GetPvsResponse>(
+      this, "GetPvs", ctx, Role::Viewer, in, out, &reactor);
   if (!r) return reactor;
   const v1::GetPvsRequest* req = &r->req;
   v1::GetPvsResponse* resp = &r->resp;
-  if (grpc::Status a = tokens_.authorize(ctx, Role::Viewer); !a.ok()) {
-    finish_unary(r, "GetPvs", a);
-    return reactor;
-  }
   std::shared_ptr<SceneEntry> e = find_or_finish(r, "GetPvs", req->scene_id());
   if (!e) return reactor;
   Camera camera;
