@@ -4,7 +4,6 @@
 // on renewals that round back to the frame's own time.
 #include <gtest/gtest.h>
 
-#include <chrono>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -88,7 +87,6 @@ TEST(TimeModel, OutOfRangeTimesAreRefusedBeforeAnythingChanges) {
 TEST(TimeModel, RenewalsAtTheEdgeOfTheRangeTerminate) {
   constexpr int kHidden = 64;
   Scratch scratch;
-  const auto start = std::chrono::steady_clock::now();
   for (double t0 : {kMaxSceneTime - 1.0, -kMaxSceneTime}) {
     // Both clocks run forwards from t0 in frames of 1/30 s.
     auto fresh = walled_scene(kHidden);
@@ -106,9 +104,6 @@ TEST(TimeModel, RenewalsAtTheEdgeOfTheRangeTerminate) {
     // Periods are about 1e-4 s, so TBVs do expire and renew along the way.
     EXPECT_GT(expired, 0) << "t0 = " << t0;
   }
-  // Not a timing assertion: a bound far above any sane frame that turns a
-  // spinning renewal into a failure instead of a hang.
-  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 60.0);
 }
 
 TEST(TimeModel, TbvPeriodOptionBelowOneMillisecondIsRefused) {
