@@ -547,4 +547,56 @@ ScenePath make_voxel_world(int size, int frames, bool cave_path, std::uint64_t s
   return out;
 }
 
+ScenePath make_city(int blocks, int frames, std::uint64_t seed) {
+  constexpr double kBlock = 24.0, kStreet = 8.0, kPitch = kBlock + kStreet;
+  constexpr double kTop = 64.0;
+  ScenePath out;
+  SceneDesc& d = out.scene;
+  const double side = blocks * kPitch + kStreet;
+  d.bounds_min = Vec3(0.0, -1.0, 0.0);
+  d.bounds_max = Vec3(side, kTop - 1.0, side);
+  const int res = static_cast<int>(side / 2.0);
+  d.grid = glm::ivec3(res, static_cast<int>(kTop / 2.0), res);
+  Rng rng(seed);
+  ObjectId id = 1;
+  d.objects.push_back(box_between(id++, Vec3(0.0, -1.0, 0.0), Vec3(side, 0.0, side)));  // ground
+  for (int bz = 0; bz < blocks; ++bz)
+    for (int bx = 0; bx < blocks; ++bx) {
+      const Vec3 o(kStreet + bx * kPitch, 0.0, kStreet + bz * kPitch);
+      // Four lots with a split point and setbacks of their own.
+      const double sx = rng.uniform(9.0, 15.0), sz = rng.uniform(9.0, 15.0);
+      const double xs[3] = {0.0, sx, kBlock}, zs[3] = {0.0, sz, kBlock};
+      for (int lz = 0; lz < 2; ++lz)
+        for (int lx = 0; lx < 2; ++lx) {
+          const double x0 = xs[lx] + rng.uniform(0.0, 1.5), x1 = xs[lx + 1] - rng.uniform(0.0, 1.5);
+          const double z0 = zs[lz] + rng.uniform(0.0, 1.5), z1 = zs[lz + 1] - rng.uniform(0.0, 1.5);
+          const double h = rng.uniform(6.0, 40.0);
+          d.objects.push_back(box_between(id++, o + Vec3(x0, 0.0, z0), o + Vec3(x1, h, z1)));
+        }
+    }
+  // Parked cars along both kerbs of every street, about one per 12 units,
+  // skipping the crossings.
+  for (int s = 0; s <= blocks; ++s) {
+    const double c = s * kPitch + 0.5 * kStreet;  // Street centreline.
+    for (int along_x = 0; along_x < 2; ++along_x)
+      for (double u = kStreet; u + 5.0 < side - kStreet; u += rng.uniform(8.0, 16.0)) {
+        if (std::fmod(u - kStreet, kPitch) > kBlock - 4.4) continue;  // A crossing.
+        const double kerb = (rng.chance(0.5) ? -1.0 : 1.0) * 2.8;
+        const Vec3 half = along_x ? Vec3(2.2, 0.75, 0.9) : Vec3(0.9, 0.75, 2.2);
+        const Vec3 at = along_x ? Vec3(u + 2.2, 0.75, c + kerb) : Vec3(c + kerb, 0.75, u + 2.2);
+        d.objects.push_back(box_around(id++, at, half));
+      }
+  }
+  // Drive along the street between block rows blocks/2 - 1 and blocks/2,
+  // glancing left and right.
+  const double zc = (blocks / 2) * kPitch + 0.5 * kStreet;
+  for (int f = 0; f < frames; ++f) {
+    const double s = static_cast<double>(f) / std::max(1, frames - 1);
+    const double x = 2.0 + s * (side - 4.0);
+    const double yaw = 0.7 * std::sin(6.28318 * 2.5 * s);
+    out.cameras.push_back(path_camera(Vec3(x, 1.7, zc + 1.0), Vec3(std::cos(yaw), 0.02, std::sin(yaw)), 60.0));
+  }
+  return out;
+}
+
 }  // namespace voxvis::test

@@ -162,4 +162,11 @@ ScenePath make_indoor_level(int rooms_x, int rooms_z, int frames, std::uint64_t 
 /// (else over the surface at 2 voxels above the ground).
 ScenePath make_voxel_world(int size, int frames, bool cave_path, std::uint64_t seed);
 
+/// A city at street level: blocks x blocks city blocks of 4 box buildings
+/// each (footprints and heights varied, not voxel-aligned), streets 8 units
+/// wide between them with parked cars (small boxes) along both sides, and a
+/// ground slab; grid of 2-unit voxels. The path drives along one street at
+/// eye height 1.7, looking ahead and glancing into the cross streets.
+ScenePath make_city(int blocks, int frames, std::uint64_t seed);
+
 }  // namespace voxvis::test
