@@ -156,6 +156,23 @@ bool OcclusionBuffer::fill(int i0, int i1, int j0, int j1, double nearest, Entry
   return any;
 }
 
+bool OcclusionBuffer::sphere_range(const Vec3& w, double radius, double* x0, double* x1, double* y0,
+                                   double* y1) const {
+  // Tangent slopes of the ball in the planes of x and y: the exact image
+  // range of its outline.
+  const double zc = glm::dot(f_, w);
+  const double den = zc * zc - radius * radius;
+  if (!(zc > radius) || !(den > 0.0)) return false;
+  const double xc = glm::dot(r_, w), yc = glm::dot(u_, w);
+  const double sx = radius * std::sqrt(std::fmax(0.0, xc * xc + den));
+  const double sy = radius * std::sqrt(std::fmax(0.0, yc * yc + den));
+  *x0 = (xc * zc - sx) / den / tan_x_;
+  *x1 = (xc * zc + sx) / den / tan_x_;
+  *y0 = (yc * zc - sy) / den / tan_y_;
+  *y1 = (yc * zc + sy) / den / tan_y_;
+  return std::isfinite(*x0) && std::isfinite(*x1) && std::isfinite(*y0) && std::isfinite(*y1);
+}
+
 bool OcclusionBuffer::render_sphere(const Vec3& c, double radius) {
   if (!on()) return false;
   const Vec3 w = c - eye_;
@@ -171,15 +188,9 @@ bool OcclusionBuffer::render_sphere(const Vec3& c, double radius) {
   const double rs = radius - delta;
   if (!(rs > 0.5 * radius)) return false;
   const double cc = ww - rs * rs;
-  // Image rectangle of the ball: tangent slopes in the planes of x and y.
-  const double xc = glm::dot(r_, w), yc = glm::dot(u_, w);
-  const double den = zc * zc - radius * radius;
-  const double sx = radius * std::sqrt(std::fmax(0.0, xc * xc + den));
-  const double sy = radius * std::sqrt(std::fmax(0.0, yc * yc + den));
+  double x0, x1, y0, y1;
   int i0, i1, j0, j1;
-  if (!rect((xc * zc - sx) / den / tan_x_, (xc * zc + sx) / den / tan_x_, (yc * zc - sy) / den / tan_y_,
-            (yc * zc + sy) / den / tan_y_, &i0, &i1, &j0, &j1))
-    return false;
+  if (!sphere_range(w, radius, &x0, &x1, &y0, &y1) || !rect(x0, x1, y0, y1, &i0, &i1, &j0, &j1)) return false;
   const double abs_slack = 1e-9 * mag;
   return fill(i0, i1, j0, j1, zc - radius, [&](const Vec3& d, double* t) {
     const double a = glm::dot(d, d);
@@ -236,6 +247,29 @@ bool OcclusionBuffer::render_box(const Vec3& lo, const Vec3& hi) {
   });
 }
 
+bool OcclusionBuffer::rect_hidden(int i0, int i1, int j0, int j1, double zmin) const {
+  for (int tj = j0 / kTile; tj <= j1 / kTile; ++tj) {
+    for (int ti = i0 / kTile; ti <= i1 / kTile; ++ti) {
+      const auto t = static_cast<std::size_t>(tj * tw_ + ti);
+      if (tile_frame_[t] != frame_) return false;  // Empty tile.
+      const float* tile = px_.data() + t * kTile * kTile;
+      if (tile_dirty_[t]) {
+        float m = -std::numeric_limits<float>::infinity();
+        for (int k = 0; k < kTile * kTile; ++k) m = std::max(m, tile[k]);
+        tile_max_[t] = m;
+        tile_dirty_[t] = 0;
+      }
+      if (static_cast<double>(tile_max_[t]) < zmin) continue;
+      const int pi0 = std::max(i0, ti * kTile), pi1 = std::min(i1, ti * kTile + kTile - 1);
+      const int pj0 = std::max(j0, tj * kTile), pj1 = std::min(j1, tj * kTile + kTile - 1);
+      for (int j = pj0; j <= pj1; ++j)
+        for (int i = pi0; i <= pi1; ++i)
+          if (!(static_cast<double>(tile[(j % kTile) * kTile + i % kTile]) < zmin)) return false;
+    }
+  }
+  return true;
+}
+
 bool OcclusionBuffer::hides(const Vec3& rel, const Vec3& size, double tol) const {
   if (!on() || written_ == 0) return false;
   tol += 4.0 * kEps * (max_abs(rel) + max_abs(size));
@@ -281,32 +315,40 @@ bool OcclusionBuffer::hides(const Vec3& rel, const Vec3& size, double tol) const
   int i0, i1, j0, j1;
   if (!rect(x0 / tan_x_ - mx, x1 / tan_x_ + mx, y0 / tan_y_ - my, y1 / tan_y_ + my, &i0, &i1, &j0, &j1))
     return false;
-  for (int tj = j0 / kTile; tj <= j1 / kTile; ++tj) {
-    for (int ti = i0 / kTile; ti <= i1 / kTile; ++ti) {
-      const auto t = static_cast<std::size_t>(tj * tw_ + ti);
-      if (tile_frame_[t] != frame_) return false;  // Empty tile.
-      const float* tile = px_.data() + t * kTile * kTile;
-      if (tile_dirty_[t]) {
-        float m = -std::numeric_limits<float>::infinity();
-        for (int k = 0; k < kTile * kTile; ++k) m = std::max(m, tile[k]);
-        tile_max_[t] = m;
-        tile_dirty_[t] = 0;
-      }
-      if (static_cast<double>(tile_max_[t]) < zmin) continue;
-      const int pi0 = std::max(i0, ti * kTile), pi1 = std::min(i1, ti * kTile + kTile - 1);
-      const int pj0 = std::max(j0, tj * kTile), pj1 = std::min(j1, tj * kTile + kTile - 1);
-      for (int j = pj0; j <= pj1; ++j)
-        for (int i = pi0; i <= pi1; ++i)
-          if (!(static_cast<double>(tile[(j % kTile) * kTile + i % kTile]) < zmin)) return false;
-    }
-  }
-  return true;
+  return rect_hidden(i0, i1, j0, j1, zmin);
 }
 
 bool OcclusionBuffer::hides_world(const Vec3& lo, const Vec3& hi) const {
   if (!on() || written_ == 0) return false;
   const double tol = 1e-12 * (max_abs(lo) + max_abs(hi) + max_abs(eye_) + 1.0);
   return hides(lo - eye_, hi - lo, tol);
+}
+
+bool OcclusionBuffer::hides_sphere(const Vec3& center, double radius) const {
+  if (!on() || written_ == 0) return false;
+  const double mag = max_abs(eye_) + max_abs(center) + radius;
+  // The ball grown by the rounding of center - eye; its nearest depth is
+  // at least zc - r.
+  const Vec3 w = center - eye_;
+  const double r = radius * (1.0 + 1e-9) + 4.0 * kEps * mag;
+  const double zc = glm::dot(f_, w);
+  const double zmin = zc - r - 4.0 * kEps * mag;
+  // Nearly touching the eye's plane, the outline's slopes lose precision:
+  // the bounding box answers instead.
+  if (!(zmin > near_) || !(zc - r > 1e-3 * r)) return hides_world(center - radius, center + radius);
+  double x0, x1, y0, y1;
+  if (!sphere_range(w, r, &x0, &x1, &y0, &y1)) return false;
+  // Rounding of the slopes: a few eps of (|w| + r)^2 / (zc^2 - r^2), times
+  // (1 + |slope|); plus a millionth of a pixel, so that a point on a pixel
+  // boundary counts for both pixels.
+  const double den = zc * zc - r * r;
+  const double e = 64.0 * kEps * (glm::dot(w, w) + r * r) / den;
+  const double sxm = std::max(std::fabs(x0), std::fabs(x1)) * tan_x_;
+  const double sym = std::max(std::fabs(y0), std::fabs(y1)) * tan_y_;
+  const double mx = e * (1.0 + sxm) / tan_x_ + 2e-6 / w_, my = e * (1.0 + sym) / tan_y_ + 2e-6 / h_;
+  int i0, i1, j0, j1;
+  if (!rect(x0 - mx, x1 + mx, y0 - my, y1 + my, &i0, &i1, &j0, &j1)) return false;
+  return rect_hidden(i0, i1, j0, j1, zmin);
 }
 
 }  // namespace voxvis::detail

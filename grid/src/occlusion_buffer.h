@@ -72,6 +72,10 @@ class OcclusionBuffer {
   bool hides(const Vec3& rel, const Vec3& size, double tol) const;
   /// The same for a world box.
   bool hides_world(const Vec3& lo, const Vec3& hi) const;
+  /// Whether the ball of `radius` around `center` (world units) is hidden:
+  /// tested over the pixels of its own image rectangle, at its nearest depth,
+  /// so tighter than its bounding box.
+  bool hides_sphere(const Vec3& center, double radius) const;
 
   /// The bound of pixel (i, j), +inf when empty (for tests).
   float pixel(int i, int j) const;
@@ -83,6 +87,11 @@ class OcclusionBuffer {
   /// Pixel rectangle [i0, i1] x [j0, j1] (clamped) from the image range of a
   /// shape; false when it misses the image.
   bool rect(double x0, double x1, double y0, double y1, int* i0, int* i1, int* j0, int* j1) const;
+  /// Image range [x0, x1] x [y0, y1] of the ball (center - eye = w), false
+  /// when the ball reaches the eye's plane.
+  bool sphere_range(const Vec3& w, double radius, double* x0, double* x1, double* y0, double* y1) const;
+  /// Whether every pixel of [i0..i1] x [j0..j1] holds a bound below zmin.
+  bool rect_hidden(int i0, int i1, int j0, int j1, double zmin) const;
   /// Writes the pixels of [i0..i1] x [j0..j1] from their corners' entry
   /// depths, `entry(dir, &t)` false for a miss.
   template <class Entry>

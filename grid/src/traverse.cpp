@@ -117,7 +117,9 @@ class Traversal {
     if (!wf_.may_intersect_box(o.box_lo(), o.box_hi())) return;
     detail::OcclusionBuffer& ob = w_.ob;
     if (ob.on()) {
-      if (ob.hides_world(o.box_lo(), o.box_hi())) {
+      const bool hidden = o.shape == Shape::Sphere ? ob.hides_sphere(o.center, o.radius)
+                                                   : ob.hides_world(o.box_lo(), o.box_hi());
+      if (hidden) {
         ++st_.ob_objects_culled;
         return;
       }
@@ -743,6 +745,26 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
         w.obj_mark[slot] = w.frame;
         w.pvs.push_back(slot);
       }
+    }
+    // Objects found early were tested against a buffer that did not yet
+    // hold the occluders found after them; test the frame's PVS and reveals
+    // once more against the whole buffer. Sound in any order: a bound says
+    // only that some object (in the PVS or not) hides what lies behind it.
+    if (w.ob.on()) {
+      auto hidden = [&](std::uint32_t slot) {
+        const Obj& o = s.objs[slot];
+        return o.shape == Shape::Sphere ? w.ob.hides_sphere(o.center, o.radius)
+                                        : w.ob.hides_world(o.box_lo(), o.box_hi());
+      };
+      const std::size_t before = w.pvs.size();
+      w.pvs.erase(std::remove_if(w.pvs.begin(), w.pvs.end(), hidden), w.pvs.end());
+      w.deferred.erase(std::remove_if(w.deferred.begin(), w.deferred.end(),
+                                      [&](std::uint32_t slot) {
+                                        const Obj& o = s.objs[slot];
+                                        return w.ob.hides_world(o.tbv_lo, o.tbv_hi);
+                                      }),
+                       w.deferred.end());
+      st.ob_objects_culled += static_cast<std::uint32_t>(before - w.pvs.size());
     }
     w.ob.end();
   }

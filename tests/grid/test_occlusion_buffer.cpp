@@ -138,6 +138,83 @@ TEST(OcclusionBuffer, WrittenBoundsHoldForEveryRayOfThePixel) {
   EXPECT_GT(checked, 1000);
 }
 
+TEST(OcclusionBuffer, SphereTestIsTighterThanItsBox) {
+  // An occluder ball of radius 4 at depth 10 covers slopes up to
+  // 4 / sqrt(84) = 0.436 (fov 90, 256 pixels: a pixel is 0.0078). A ball of
+  // radius 1 at depth 20 and slope 0.36 reaches slope 0.41: hidden. Its
+  // bounding box's near corners reach slope (7.2 + 1) / 19 = 0.43 at depth
+  // 19, within a pixel of the outline: not hidden.
+  OcclusionBuffer ob = begin(look_down_z(90.0), 256);
+  ASSERT_TRUE(ob.render_sphere(Vec3(0, 0, -10), 4.0));
+  EXPECT_TRUE(ob.hides_sphere(Vec3(0, 0, -20), 1.0));
+  EXPECT_TRUE(ob.hides_world(Vec3(-1, -1, -21), Vec3(1, 1, -19)));
+  const Vec3 side(0.36 * 20.0, 0.0, -20.0);
+  EXPECT_TRUE(ob.hides_sphere(side, 1.0));
+  EXPECT_FALSE(ob.hides_world(side - 1.0, side + 1.0));
+  // Reaching in front of the occluder's surface (depth 6), or beside it:
+  // not hidden.
+  EXPECT_FALSE(ob.hides_sphere(Vec3(0, 0, -5.5), 1.0));
+  EXPECT_FALSE(ob.hides_sphere(Vec3(0.45 * 20.0, 0.0, -20.0), 1.0));
+}
+
+TEST(OcclusionBuffer, HiddenSpheresAreHiddenForEveryRay) {
+  // Random occluders, random balls: whenever hides_sphere says hidden, every
+  // sampled point of the ball has an occluder hit before it on its ray.
+  Rng rng(77);
+  int hidden = 0;
+  for (int trial = 0; trial < scaled(200); ++trial) {
+    Camera cam = look_down_z(rng.uniform(20.0, 150.0), rng.uniform(0.5, 2.0), rng.log_uniform(1e-3, 0.5));
+    cam.eye = rng.in_box(Vec3(-3), Vec3(3));
+    cam.dir = glm::normalize(Vec3(rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), -1.0));
+    ViewBasis vb;
+    ASSERT_TRUE(make_basis(cam, &vb));
+    OcclusionBuffer ob = begin(cam, rng.chance(0.5) ? 32 : 128);
+    std::vector<ObjectDesc> occ;
+    for (int k = 0; k < 6; ++k) {
+      const Vec3 at = cam.eye + vb.f * rng.uniform(3.0, 12.0) + rng.in_box(Vec3(-4, -4, 0), Vec3(4, 4, 0));
+      if (rng.chance(0.5)) {
+        occ.push_back(sphere(k + 1, at, rng.uniform(0.5, 4.0)));
+        ob.render_sphere(occ.back().center, occ.back().radius);
+      } else {
+        occ.push_back(box_around(k + 1, at, rng.in_box(Vec3(0.3), Vec3(4.0))));
+        ob.render_box(occ.back().center - occ.back().half_extent, occ.back().center + occ.back().half_extent);
+      }
+    }
+    for (int q = 0; q < 40; ++q) {
+      Vec3 c = cam.eye + vb.f * rng.uniform(2.0, 30.0) + rng.in_box(Vec3(-6, -6, 0), Vec3(6, 6, 0));
+      const double r = rng.log_uniform(0.01, 3.0);
+      if (q % 2) {
+        // Close behind (or reaching in front of) an occluder's nearest
+        // point along the ray to its centre, where a wrong depth shows.
+        const ObjectDesc& o = occ[static_cast<std::size_t>(rng.uniform_int(0, 5))];
+        const Vec3 to = glm::normalize(o.center - cam.eye);
+        double t0 = 0.0, t1 = 0.0;
+        if (!intersect(o, cam.eye, to, &t0, &t1)) continue;
+        c = cam.eye + to * (t0 + r * rng.uniform(0.5, 2.0));
+      }
+      if (!ob.hides_sphere(c, r)) continue;
+      ++hidden;
+      for (int s = 0; s < 200; ++s) {
+        // Points on and in the ball.
+        const Vec3 p = c + rng.unit_vector() * (s % 2 ? r : r * rng.uniform());
+        const Vec3 d = (p - vb.eye) / glm::dot(p - vb.eye, vb.f);  // d·f = 1: parameter = depth.
+        const double depth = glm::dot(p - vb.eye, vb.f);
+        const double x = glm::dot(p - vb.eye, vb.right) / (depth * vb.tanx);
+        const double y = glm::dot(p - vb.eye, vb.up) / (depth * vb.tany);
+        if (!(std::fabs(x) <= 1.0 && std::fabs(y) <= 1.0 && depth >= cam.near)) continue;  // Out of view.
+        bool blocked = false;
+        for (const ObjectDesc& o : occ) {
+          double t0 = 0.0, t1 = 0.0;
+          if (intersect(o, vb.eye, d, &t0, &t1) && t0 >= cam.near && t0 < depth) blocked = true;
+        }
+        ASSERT_TRUE(blocked) << "hidden ball has a point in view: centre " << c.x << "," << c.y << ","
+                             << c.z << " r " << r << " " << describe(cam);
+      }
+    }
+  }
+  EXPECT_GT(hidden, 50) << "too few hidden balls: the test proves little";
+}
+
 SceneOptions with_buffer(std::uint64_t seed, int width) {
   Rng rng(mix_seed(seed, 0x0971));
   SceneOptions opt;
