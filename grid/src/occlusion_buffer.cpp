@@ -178,9 +178,10 @@ bool OcclusionBuffer::render_sphere(const Vec3& c, double radius) {
   const Vec3 w = c - eye_;
   const double mag = max_abs(eye_) + max_abs(c) + radius;
   const double zc = glm::dot(f_, w);
-  // Only an occluder wholly beyond the near plane may occlude.
-  if (!(zc - radius >= near_ + 1e-9 * mag)) return false;
   const double ww = glm::dot(w, w);
+  // Only the part beyond the near plane occludes (the ray caster clips
+  // objects there); a ball around the eye writes nothing.
+  if (!(zc + radius > near_) || !(ww > radius * radius)) return false;
   // Shrink so that a rounding error in the hit test can only drop a pixel:
   // the discriminant's error is a few eps * |d|^2 |w|^2, the shrink moves it
   // by about 2 |d|^2 r delta.
@@ -188,17 +189,28 @@ bool OcclusionBuffer::render_sphere(const Vec3& c, double radius) {
   const double rs = radius - delta;
   if (!(rs > 0.5 * radius)) return false;
   const double cc = ww - rs * rs;
-  double x0, x1, y0, y1;
+  // Image range: the outline's when the ball lies wholly in front of the
+  // eye's plane, else the whole image.
+  double x0 = -1.0, x1 = 1.0, y0 = -1.0, y1 = 1.0;
+  if (zc - radius > 1e-3 * radius && !sphere_range(w, radius, &x0, &x1, &y0, &y1)) return false;
   int i0, i1, j0, j1;
-  if (!sphere_range(w, radius, &x0, &x1, &y0, &y1) || !rect(x0, x1, y0, y1, &i0, &i1, &j0, &j1)) return false;
+  if (!rect(x0, x1, y0, y1, &i0, &i1, &j0, &j1)) return false;
   const double abs_slack = 1e-9 * mag;
-  return fill(i0, i1, j0, j1, zc - radius, [&](const Vec3& d, double* t) {
+  const bool clip = zc - radius < near_ + 1e-9 * mag;
+  return fill(i0, i1, j0, j1, std::fmax(zc - radius, near_), [&](const Vec3& d, double* t) {
     const double a = glm::dot(d, d);
     const double b = glm::dot(d, w);
     if (!(b > 0.0)) return false;
     const double disc = b * b - a * cc;
     if (!(disc >= 0.0)) return false;
-    const double te = cc / (b + std::sqrt(disc));  // Entry parameter = depth (d·f = 1).
+    const double q = b + std::sqrt(disc);
+    double te = cc / q;  // Entry parameter = depth (d·f = 1).
+    if (clip) {
+      // The part beyond the near plane: the ray must leave the shrunk ball
+      // beyond it, and is first inside the ball at max(entry, near).
+      if (!(q / a >= near_ * (1.0 + kDepthSlack) + abs_slack)) return false;
+      te = std::fmax(te, near_);
+    }
     *t = te * (1.0 + kDepthSlack) + abs_slack;
     return true;
   });
@@ -213,19 +225,53 @@ bool OcclusionBuffer::render_box(const Vec3& lo, const Vec3& hi) {
   const Vec3 size = H - L;
   double zmin = glm::dot(f_, L);
   for (int a = 0; a < 3; ++a) zmin += std::fmin(0.0, f_[a] * size[a]);
-  if (!(zmin >= near_ + 1e-9 * mag)) return false;  // Wholly beyond the near plane only.
+  double zmax = glm::dot(f_, L);
+  for (int a = 0; a < 3; ++a) zmax += std::fmax(0.0, f_[a] * size[a]);
+  // Only the part beyond the near plane occludes (the ray caster clips
+  // objects there); a box around the eye writes nothing.
+  if (!(zmax > near_)) return false;
+  {
+    const Vec3 gl = lo - delta - eye_, gh = hi + delta - eye_;
+    if (gl.x <= 0.0 && gh.x >= 0.0 && gl.y <= 0.0 && gh.y >= 0.0 && gl.z <= 0.0 && gh.z >= 0.0) return false;
+  }
+  const bool clip = zmin < near_ + 1e-9 * mag;
+  // Image range of the part beyond the near plane: its corners there and
+  // where its edges cross the plane.
   double x0 = kInf, x1 = -kInf, y0 = kInf, y1 = -kInf;
-  for (int k = 0; k < 8; ++k) {
-    const Vec3 p{(k & 1) ? H.x : L.x, (k & 2) ? H.y : L.y, (k & 4) ? H.z : L.z};
+  auto take = [&](const Vec3& p) {
     const double z = glm::dot(f_, p);
     const double x = glm::dot(r_, p) / (z * tan_x_), y = glm::dot(u_, p) / (z * tan_y_);
     x0 = std::fmin(x0, x), x1 = std::fmax(x1, x);
     y0 = std::fmin(y0, y), y1 = std::fmax(y1, y);
+  };
+  for (int k = 0; k < 8; ++k) {
+    const Vec3 p{(k & 1) ? H.x : L.x, (k & 2) ? H.y : L.y, (k & 4) ? H.z : L.z};
+    const double z = glm::dot(f_, p);
+    if (z >= near_) {
+      take(p);
+    } else {
+      // The edges from this corner to corners beyond the plane.
+      for (int bit = 1; bit < 8; bit <<= 1) {
+        const int k2 = k ^ bit;
+        const Vec3 q{(k2 & 1) ? H.x : L.x, (k2 & 2) ? H.y : L.y, (k2 & 4) ? H.z : L.z};
+        const double zq = glm::dot(f_, q);
+        if (zq > near_) take(p + (q - p) * ((near_ - z) / (zq - z)));
+      }
+    }
   }
+  // A crossing point rounded to just before the plane: widen a little (the
+  // range only limits the pixels visited; the hit test decides coverage).
+  if (clip) {
+    const double wx = 1e-9 * (1.0 + std::fmax(std::fabs(x0), std::fabs(x1)));
+    const double wy = 1e-9 * (1.0 + std::fmax(std::fabs(y0), std::fabs(y1)));
+    x0 -= wx, x1 += wx, y0 -= wy, y1 += wy;
+  }
+  if (!(x0 <= x1) || !(y0 <= y1) || !std::isfinite(x0 + x1 + y0 + y1)) return false;
   int i0, i1, j0, j1;
   if (!rect(x0, x1, y0, y1, &i0, &i1, &j0, &j1)) return false;
   const double abs_slack = 1e-9 * mag;
-  return fill(i0, i1, j0, j1, zmin, [&](const Vec3& d, double* t) {
+  const double near_exit = near_ * (1.0 + kDepthSlack) + abs_slack;
+  return fill(i0, i1, j0, j1, std::fmax(zmin, near_), [&](const Vec3& d, double* t) {
     double tin = 0.0, tout = kInf, err = 0.0;
     for (int a = 0; a < 3; ++a) {
       if (d[a] == 0.0) {
@@ -242,6 +288,12 @@ bool OcclusionBuffer::render_box(const Vec3& lo, const Vec3& hi) {
       tout = std::fmin(tout, tb);
     }
     if (!(tin <= tout) || !(tin > 0.0)) return false;
+    if (clip) {
+      // The part beyond the near plane: the ray must leave the shrunk box
+      // beyond it, and is first inside the box at max(entry, near).
+      if (!(tout >= near_exit)) return false;
+      if (tin < near_) tin = near_, err = 0.0;
+    }
     *t = tin * (1.0 + kDepthSlack) + abs_slack + err;
     return true;
   });

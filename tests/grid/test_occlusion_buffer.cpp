@@ -66,17 +66,38 @@ TEST(OcclusionBuffer, BoxPeekingOutByAFractionOfAPixelIsNotHidden) {
   EXPECT_FALSE(ob.hides_world(Vec3(-1, -peek, -21), Vec3(1, 1, -20)));
 }
 
-TEST(OcclusionBuffer, OccludersCrossingTheNearPlaneWriteNothing) {
-  OcclusionBuffer ob = begin(look_down_z(60.0, 1.0, 1.0), 64);
-  EXPECT_FALSE(ob.render_sphere(Vec3(0, 0, -1.5), 1.0));  // Nearest depth 0.5 < near.
-  EXPECT_FALSE(ob.render_box(Vec3(-5, -5, -3), Vec3(5, 5, -0.5)));
-  EXPECT_FALSE(ob.hides_world(Vec3(-0.1, -0.1, -30), Vec3(0.1, 0.1, -29)));
-  // Wholly beyond it: writes, and a tested box crossing the near plane is
-  // never hidden.
-  ASSERT_TRUE(ob.render_box(Vec3(-50, -50, -3), Vec3(50, 50, -2)));
-  EXPECT_TRUE(ob.hides_world(Vec3(-0.1, -0.1, -30), Vec3(0.1, 0.1, -29)));
-  EXPECT_FALSE(ob.hides_world(Vec3(-0.1, -0.1, -30), Vec3(0.1, 0.1, -0.5)));
-  EXPECT_FALSE(ob.hides_world(Vec3(-0.1, -0.1, 1), Vec3(0.1, 0.1, 2)));  // Behind the eye.
+TEST(OcclusionBuffer, OccludersCrossingTheNearPlaneOccludeWithTheirFarPart) {
+  // near = 1. A ball from depth 0.5 to 2.5 and a slab from 0.5 to 3 cross
+  // the near plane: only their parts beyond it occlude, first hit at the
+  // near plane at the latest.
+  {
+    OcclusionBuffer ob = begin(look_down_z(60.0, 1.0, 1.0), 64);
+    ASSERT_TRUE(ob.render_sphere(Vec3(0, 0, -1.5), 1.0));
+    EXPECT_TRUE(ob.hides_world(Vec3(-0.1, -0.1, -30), Vec3(0.1, 0.1, -29)));
+    EXPECT_TRUE(ob.hides_world(Vec3(-0.1, -0.1, -1.3), Vec3(0.1, 0.1, -1.2)));  // Inside the ball.
+    EXPECT_FALSE(ob.hides_world(Vec3(-0.1, -0.1, -30), Vec3(0.1, 0.1, -0.9)));  // Crosses near.
+    // The ball's part beyond near spans slopes up to sqrt(1 - 0.25) / 1 =
+    // 0.87 > tan 30: it covers the whole image.
+    EXPECT_TRUE(ob.hides_world(Vec3(12, 12, -30), Vec3(13, 13, -29)));
+  }
+  {
+    OcclusionBuffer ob = begin(look_down_z(60.0, 1.0, 1.0), 64);
+    ASSERT_TRUE(ob.render_box(Vec3(-5, -5, -3), Vec3(5, 5, -0.5)));
+    EXPECT_TRUE(ob.hides_world(Vec3(-0.1, -0.1, -30), Vec3(0.1, 0.1, -29)));
+    EXPECT_FALSE(ob.hides_world(Vec3(-0.1, -0.1, -30), Vec3(0.1, 0.1, -0.5)));
+    EXPECT_FALSE(ob.hides_world(Vec3(-0.1, -0.1, 1), Vec3(0.1, 0.1, 2)));  // Behind the eye.
+    // Beyond its side x = 5 at depth 3 (slope 1.67, outside the image) the
+    // box still covers the image at depth <= 3: at slope tan 30 = 0.58 its
+    // side is reached at depth 8.7 > 3, so its back face (depth 3) is hit.
+    EXPECT_TRUE(ob.hides_world(Vec3(10, -0.1, -30), Vec3(11, 0.1, -29)));
+  }
+  {
+    // Wholly before the near plane: nothing.
+    OcclusionBuffer ob = begin(look_down_z(60.0, 1.0, 1.0), 64);
+    EXPECT_FALSE(ob.render_sphere(Vec3(0, 0, -0.5), 0.4));
+    EXPECT_FALSE(ob.render_box(Vec3(-5, -5, -0.9), Vec3(5, 5, -0.5)));
+    EXPECT_FALSE(ob.hides_world(Vec3(-0.1, -0.1, -30), Vec3(0.1, 0.1, -29)));
+  }
 }
 
 TEST(OcclusionBuffer, EyeInsideAnOccludersBoxWritesNothing) {
@@ -86,8 +107,8 @@ TEST(OcclusionBuffer, EyeInsideAnOccludersBoxWritesNothing) {
   EXPECT_FALSE(ob.hides_world(Vec3(-0.1, -0.1, -30), Vec3(0.1, 0.1, -29)));
 }
 
-/// Every ray through a written pixel must enter the occluder (beyond near)
-/// at a depth no greater than the pixel's bound: sampled inside pixels and
+/// Every ray through a written pixel must be inside the occluder beyond the
+/// near plane at a depth no greater than the pixel's bound: sampled inside pixels and
 /// exactly on their corners and edges, for random cameras, lenses and shapes.
 TEST(OcclusionBuffer, WrittenBoundsHoldForEveryRayOfThePixel) {
   Rng rng(42);
@@ -107,7 +128,11 @@ TEST(OcclusionBuffer, WrittenBoundsHoldForEveryRayOfThePixel) {
     const int width = rng.chance(0.5) ? 16 : 64;
     OcclusionBuffer ob = begin(cam, width);
     ObjectDesc o;
-    const Vec3 at = cam.eye + glm::normalize(cam.dir) * rng.uniform(1.0, 20.0) + rng.in_box(Vec3(-3), Vec3(3));
+    // A third of the shapes sit at the near plane, so that they cross it.
+    const Vec3 at = rng.chance(0.33) ? cam.eye + glm::normalize(cam.dir) * (cam.near * rng.uniform(0.5, 3.0)) +
+                                           rng.in_box(Vec3(-0.5), Vec3(0.5))
+                                     : cam.eye + glm::normalize(cam.dir) * rng.uniform(1.0, 20.0) +
+                                           rng.in_box(Vec3(-3), Vec3(3));
     if (rng.chance(0.5)) {
       o = sphere(1, at, rng.log_uniform(0.05, 5.0));
       ob.render_sphere(o.center, o.radius);
@@ -127,8 +152,10 @@ TEST(OcclusionBuffer, WrittenBoundsHoldForEveryRayOfThePixel) {
           double t0 = 0.0, t1 = 0.0;
           ASSERT_TRUE(intersect(o, vb.eye, vb.ray_dir(x, y), &t0, &t1))
               << "pixel " << i << "," << j << " written but a ray misses: " << describe(cam) << " " << describe(o);
-          EXPECT_GE(t0, cam.near) << describe(cam) << " " << describe(o);
-          ASSERT_LE(t0, static_cast<double>(bound))
+          // The first hit beyond the near plane (objects are clipped there).
+          ASSERT_GE(t1, cam.near) << "pixel " << i << "," << j << " written but a ray leaves before near: "
+                                  << describe(cam) << " " << describe(o);
+          ASSERT_LE(std::max(t0, cam.near), static_cast<double>(bound))
               << "pixel " << i << "," << j << " bound too near: " << describe(cam) << " " << describe(o);
           ++checked;
         }
@@ -205,7 +232,9 @@ TEST(OcclusionBuffer, HiddenSpheresAreHiddenForEveryRay) {
         bool blocked = false;
         for (const ObjectDesc& o : occ) {
           double t0 = 0.0, t1 = 0.0;
-          if (intersect(o, vb.eye, d, &t0, &t1) && t0 >= cam.near && t0 < depth) blocked = true;
+          // First inside the occluder beyond the near plane, before p.
+          if (intersect(o, vb.eye, d, &t0, &t1) && t1 >= cam.near && std::max(t0, cam.near) < depth)
+            blocked = true;
         }
         ASSERT_TRUE(blocked) << "hidden ball has a point in view: centre " << c.x << "," << c.y << ","
                              << c.z << " r " << r << " " << describe(cam);
