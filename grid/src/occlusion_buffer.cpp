@@ -111,10 +111,43 @@ bool OcclusionBuffer::rect(double x0, double x1, double y0, double y1, int* i0, 
 
 template <class Entry>
 bool OcclusionBuffer::fill(int i0, int i1, int j0, int j1, double nearest, Entry&& entry) {
+  bool any = false;
+  // Tile by tile, so that a tile whose every pixel already holds a bound no
+  // farther than the occluder's nearest depth costs one comparison: the
+  // occluder cannot lower any of them.
+  for (int tj = j0 / kTile; tj <= j1 / kTile; ++tj)
+    for (int ti = i0 / kTile; ti <= i1 / kTile; ++ti) {
+      const auto t = static_cast<std::size_t>(tj * tw_ + ti);
+      if (tile_frame_[t] == frame_) {
+        const double m = static_cast<double>(tile_max(t));
+        if (m <= nearest) continue;
+        // A guess, which may only cost pixels the occluder could have
+        // lowered (writing is optional; the buffer stays conservative):
+        // when the rays through the tile's four corners all enter the
+        // occluder beyond the tile's largest bound, skip the tile.
+        bool behind = true;
+        for (int c = 0; c < 4 && behind; ++c) {
+          const int ci = std::clamp((ti + (c & 1)) * kTile, i0, i1 + 1);
+          const int cj = std::clamp((tj + (c >> 1)) * kTile, j0, j1 + 1);
+          const Vec3 d = f_ + ((2.0 * ci / w_ - 1.0) * tan_x_) * r_ + ((2.0 * cj / h_ - 1.0) * tan_y_) * u_;
+          double te = -1.0;
+          behind = entry(d, &te) && te > m;
+        }
+        if (behind) continue;
+      }
+      any |= fill_tile(std::max(i0, ti * kTile), std::min(i1, ti * kTile + kTile - 1), std::max(j0, tj * kTile),
+                       std::min(j1, tj * kTile + kTile - 1), nearest, entry);
+    }
+  return any;
+}
+
+template <class Entry>
+bool OcclusionBuffer::fill_tile(int i0, int i1, int j0, int j1, double nearest, Entry& entry) {
   const int nc = i1 - i0 + 2, nr = j1 - j0 + 2;
-  corner_t_.resize(static_cast<std::size_t>(nc) * static_cast<std::size_t>(nr));
+  double corner_t[(kTile + 1) * (kTile + 1)];
   // Corner (i, j) is the image point (2i/W - 1, 2j/H - 1); neighbours share
-  // the very same corner rays, so the pixels' squares tile the image.
+  // the very same corner rays (computed the same way in every tile), so the
+  // pixels' squares tile the image.
   for (int jj = 0; jj < nr; ++jj) {
     const double yc = 2.0 * (j0 + jj) / h_ - 1.0;
     const Vec3 fy = f_ + (yc * tan_y_) * u_;
@@ -123,12 +156,12 @@ bool OcclusionBuffer::fill(int i0, int i1, int j0, int j1, double nearest, Entry
       const Vec3 d = fy + (xc * tan_x_) * r_;
       double t = -1.0;
       if (!entry(d, &t)) t = -1.0;
-      corner_t_[static_cast<std::size_t>(jj * nc + ii)] = t;
+      corner_t[jj * nc + ii] = t;
     }
   }
   bool any = false;
   for (int j = j0; j <= j1; ++j) {
-    const double* c0 = corner_t_.data() + static_cast<std::ptrdiff_t>(j - j0) * nc;
+    const double* c0 = corner_t + (j - j0) * nc;
     const double* c1 = c0 + nc;
     for (int i = i0; i <= i1; ++i) {
       const int k = i - i0;
@@ -154,6 +187,17 @@ bool OcclusionBuffer::fill(int i0, int i1, int j0, int j1, double nearest, Entry
     }
   }
   return any;
+}
+
+float OcclusionBuffer::tile_max(std::size_t t) const {
+  if (tile_dirty_[t]) {
+    const float* tile = px_.data() + t * kTile * kTile;
+    float m = -std::numeric_limits<float>::infinity();
+    for (int k = 0; k < kTile * kTile; ++k) m = std::max(m, tile[k]);
+    tile_max_[t] = m;
+    tile_dirty_[t] = 0;
+  }
+  return tile_max_[t];
 }
 
 bool OcclusionBuffer::sphere_range(const Vec3& w, double radius, double* x0, double* x1, double* y0,
@@ -305,13 +349,7 @@ bool OcclusionBuffer::rect_hidden(int i0, int i1, int j0, int j1, double zmin) c
       const auto t = static_cast<std::size_t>(tj * tw_ + ti);
       if (tile_frame_[t] != frame_) return false;  // Empty tile.
       const float* tile = px_.data() + t * kTile * kTile;
-      if (tile_dirty_[t]) {
-        float m = -std::numeric_limits<float>::infinity();
-        for (int k = 0; k < kTile * kTile; ++k) m = std::max(m, tile[k]);
-        tile_max_[t] = m;
-        tile_dirty_[t] = 0;
-      }
-      if (static_cast<double>(tile_max_[t]) < zmin) continue;
+      if (static_cast<double>(tile_max(t)) < zmin) continue;
       const int pi0 = std::max(i0, ti * kTile), pi1 = std::min(i1, ti * kTile + kTile - 1);
       const int pj0 = std::max(j0, tj * kTile), pj1 = std::min(j1, tj * kTile + kTile - 1);
       for (int j = pj0; j <= pj1; ++j)

@@ -30,7 +30,8 @@
 // pixel is empty), recomputed only when a test reads a tile that occluders
 // wrote since (the bounds only decrease, so a stale maximum is still an
 // upper bound). A tile nothing was written to this frame is empty and costs
-// nothing to clear.
+// nothing to clear. An occluder skips every tile whose largest bound is no
+// farther than its own nearest depth: it could not lower any pixel there.
 #pragma once
 
 #include <cstdint>
@@ -93,9 +94,15 @@ class OcclusionBuffer {
   /// Whether every pixel of [i0..i1] x [j0..j1] holds a bound below zmin.
   bool rect_hidden(int i0, int i1, int j0, int j1, double zmin) const;
   /// Writes the pixels of [i0..i1] x [j0..j1] from their corners' entry
-  /// depths, `entry(dir, &t)` false for a miss.
+  /// depths, `entry(dir, &t)` false for a miss; `nearest` bounds the
+  /// occluder's depth from below (tiles already nearer are skipped).
   template <class Entry>
-  bool fill(int i0, int i1, int j0, int j1, double slack, Entry&& entry);
+  bool fill(int i0, int i1, int j0, int j1, double nearest, Entry&& entry);
+  /// The same within one tile.
+  template <class Entry>
+  bool fill_tile(int i0, int i1, int j0, int j1, double nearest, Entry& entry);
+  /// Largest bound of tile t (written this frame), refreshed when stale.
+  float tile_max(std::size_t t) const;
 
   Vec3 eye_{0.0}, f_{0.0}, r_{0.0}, u_{0.0};
   double tan_x_ = 1.0, tan_y_ = 1.0, near_ = 0.0;
@@ -106,7 +113,6 @@ class OcclusionBuffer {
   std::vector<std::uint32_t> tile_frame_;  ///< Frame the tile was cleared in.
   mutable std::vector<float> tile_max_;
   mutable std::vector<std::uint8_t> tile_dirty_;
-  std::vector<double> corner_t_;  ///< Scratch for fill().
 };
 
 }  // namespace voxvis::detail
