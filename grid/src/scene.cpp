@@ -10,6 +10,7 @@
 #include <glm/geometric.hpp>
 
 #include "numeric.h"
+#include "opaque_boxes.h"
 #include "scene_impl.h"
 
 namespace voxvis {
@@ -21,6 +22,9 @@ using detail::max_abs;
 using detail::num;
 
 namespace {
+
+/// Longest side of an opaque box, voxels (opaque_boxes.h).
+constexpr int kOpaqueBoxSide = 16;
 
 /// now + period, but always later than now: the frame's expiry loop takes
 /// every TBV expiring at or before its time, so a renewal that rounded back to
@@ -133,17 +137,19 @@ Status validate_desc(const SceneDesc& d, const SceneOptions& opt) {
 Scratch::Scratch() : impl_(std::make_unique<Impl>()) {}
 Scratch::~Scratch() = default;
 
-void Scratch::Impl::begin(std::size_t voxels, std::size_t objects) {
+void Scratch::Impl::begin(std::size_t voxels, std::size_t objects, std::size_t boxes) {
   pvs.clear();
   deferred.clear();
   if (stamp.size() < voxels) stamp.resize(voxels, 0);
   if (obj_mark.size() < objects) obj_mark.resize(objects, 0);
   if (obj_seen.size() < objects) obj_seen.resize(objects, 0);
+  if (box_seen.size() < boxes) box_seen.resize(boxes, 0);
   // Start the frame counter over before it wraps, so that no stale object
   // mark can ever match (stamp tags cycle separately, below).
   if (++frame == std::numeric_limits<std::uint32_t>::max()) {
     std::fill(obj_mark.begin(), obj_mark.end(), 0u);
     std::fill(obj_seen.begin(), obj_seen.end(), 0u);
+    std::fill(box_seen.begin(), box_seen.end(), 0u);
     frame = 1;
   }
   if (++stamp_tag == 64) {
@@ -680,6 +686,9 @@ Status Scene::create(const SceneDesc& desc, const SceneOptions& options, std::un
                            s.static_offsets[i + 1] - s.static_offsets[i], x, y, z))
           s.vflags[i] |= Impl::kStaticOpaque;
       }
+  if (s.options.occlusion_buffer > 0)
+    detail::cover_with_boxes(s.res, s.vflags, Impl::kStaticOpaque, kOpaqueBoxSide, &s.opaque_boxes,
+                             &s.opaque_owner);
 
   if (s.dynamic_count > 0) {
     s.bricks_res = (s.res + ((1 << detail::kBrickShift) - 1)) >> detail::kBrickShift;

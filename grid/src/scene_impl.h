@@ -117,9 +117,12 @@ struct Scratch::Impl {
   std::vector<std::uint32_t> deferred;
   /// The frame's occlusion buffer (off unless SceneOptions::occlusion_buffer).
   detail::OcclusionBuffer ob;
+  /// Per opaque box (Scene::Impl::opaque_boxes): frame it was rendered in.
+  std::vector<std::uint32_t> box_seen;
 
-  /// Starts a frame for a scene of `voxels` voxels and `objects` slots.
-  void begin(std::size_t voxels, std::size_t objects);
+  /// Starts a frame for a scene of `voxels` voxels, `objects` slots and
+  /// `boxes` opaque boxes.
+  void begin(std::size_t voxels, std::size_t objects, std::size_t boxes);
 };
 
 struct Scene::Impl {
@@ -142,6 +145,10 @@ struct Scene::Impl {
   std::vector<std::uint8_t> vflags;
   std::vector<std::uint32_t> static_offsets;
   std::vector<std::uint32_t> static_ids;  ///< Slots.
+  /// With the occlusion buffer on: the static opaque voxels as overlapping
+  /// boxes, and each opaque voxel's owner box (opaque_boxes.h).
+  std::vector<detail::VoxBox> opaque_boxes;
+  std::vector<std::uint32_t> opaque_owner;
 
   // Dynamic layer (allocated only when the scene has dynamic objects).
   glm::ivec3 bricks_res{0};

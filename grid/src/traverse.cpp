@@ -28,6 +28,7 @@
 
 #include "frustum.h"
 #include "numeric.h"
+#include "opaque_boxes.h"
 #include "scene_impl.h"
 
 namespace voxvis {
@@ -131,6 +132,19 @@ class Traversal {
     }
     w_.obj_mark[slot] = w_.frame;
     w_.pvs.push_back(slot);
+  }
+  /// Renders the opaque box owning static opaque voxel idx, once a frame
+  /// (opaque_boxes.h): the voxel is reached, so the box may be in view.
+  void render_opaque_box(std::int64_t idx) {
+    if (s_.opaque_owner.empty()) return;
+    const std::uint32_t b = s_.opaque_owner[static_cast<std::size_t>(idx)];
+    if (b == detail::kNoBox || w_.box_seen[b] == w_.frame) return;
+    w_.box_seen[b] = w_.frame;
+    const detail::VoxBox& vb = s_.opaque_boxes[b];
+    const GridSpec& g = s_.spec;
+    const Vec3 lo = g.bounds_min + Vec3(vb.lo) * g.voxel_size;
+    const Vec3 hi = g.bounds_min + Vec3(vb.hi + 1) * g.voxel_size;
+    if (w_.ob.render_box(lo, hi)) ++st_.ob_occluders;
   }
   /// Whether the occlusion buffer proves every point of local voxel v hidden.
   bool ob_hides_voxel(const std::int64_t v[3]) const {
@@ -473,6 +487,7 @@ void Traversal::visit_row(int face, int a, int b, int d, std::int64_t la, std::i
       const Vec3 lo{static_cast<double>(v[0]), static_cast<double>(v[1]), static_cast<double>(v[2])};
       blocking = lf_.depth_min(lo) >= lf_.near + depth_tol_;
     }
+    if (ob_on_ && (flags & Scene::Impl::kStaticOpaque)) render_opaque_box(idx);
     stamp = static_cast<std::uint8_t>(tag_ | (blocking ? kBlocked : kLive));
     if (!blocking) {
       live_lo = std::min(live_lo, vb);
@@ -654,7 +669,7 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
   if (Status st = validate_time("t", t); !st) return st;
   const auto start = std::chrono::steady_clock::now();
   Scratch::Impl& w = scratch.impl();
-  w.begin(static_cast<std::size_t>(s.spec.voxel_count()), s.objs.size());
+  w.begin(static_cast<std::size_t>(s.spec.voxel_count()), s.objs.size(), s.opaque_boxes.size());
   const WorldFrustum wf = detail::make_world_frustum(camera);
   FrameStats st;
   std::vector<std::uint32_t> wake;

@@ -1,0 +1,128 @@
+// The occlusion buffer on the bundled scene kinds (voxel world, indoor level,
+// city at street level) against the ray caster: zero misses, and tighter
+// than without the buffer; and the opaque-box cover (opaque_boxes.h) that
+// lets abutting blocks and walls fuse in the buffer.
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "engine_check.h"
+#include "opaque_boxes.h"
+#include "raycast.h"
+#include "scenes.h"
+
+namespace voxvis::test {
+namespace {
+
+constexpr double kDt = 1.0 / 60.0;
+
+/// Replays a path with the buffer at `width` and without it; zero misses in
+/// both; returns the two PVS totals.
+void replay(const ScenePath& p, int width, const std::string& label, double* with, double* without) {
+  SceneOptions on;
+  on.occlusion_buffer = width;
+  EngineHarness a(p.scene, on, label + " ob=" + std::to_string(width));
+  EngineHarness b(p.scene, {}, label);
+  ASSERT_TRUE(a.status().ok) << a.status().str();
+  *with = *without = 0.0;
+  for (std::size_t f = 0; f < p.cameras.size(); ++f) {
+    const double t = static_cast<double>(f) * kDt;
+    const std::string err = a.frame(p.cameras[f], t);
+    ASSERT_TRUE(err.empty()) << err;
+    ASSERT_TRUE(b.frame(p.cameras[f], t).empty());
+    *with += static_cast<double>(a.last().pvs.size());
+    *without += static_cast<double>(b.last().pvs.size());
+  }
+}
+
+TEST(BufferScenes, VoxelWorldCaveAndSurface) {
+  for (bool cave : {true, false}) {
+    const ScenePath p = make_voxel_world(32, std::max(4, scaled(16)), cave, 5);
+    double with = 0.0, without = 0.0;
+    replay(p, 128, cave ? "voxel world, cave" : "voxel world, surface", &with, &without);
+    if (HasFatalFailure()) return;
+    EXPECT_LT(with, 0.8 * without) << (cave ? "cave" : "surface");
+  }
+}
+
+TEST(BufferScenes, IndoorLevel) {
+  const ScenePath p = make_indoor_level(3, 3, std::max(4, scaled(20)), 9);
+  double with = 0.0, without = 0.0;
+  replay(p, 128, "indoor level", &with, &without);
+  if (HasFatalFailure()) return;
+  EXPECT_LT(with, without);
+}
+
+TEST(BufferScenes, CityAtStreetLevel) {
+  const ScenePath p = make_city(4, std::max(4, scaled(20)), 3);
+  double with = 0.0, without = 0.0;
+  replay(p, 128, "city", &with, &without);
+  if (HasFatalFailure()) return;
+  EXPECT_LT(with, 0.8 * without);
+}
+
+TEST(OpaqueBoxes, CoverEverySetVoxelWithBoxesOfSetVoxelsOnly) {
+  Rng rng(31);
+  for (int trial = 0; trial < 40; ++trial) {
+    const glm::ivec3 res(rng.uniform_int(1, 12), rng.uniform_int(1, 12), rng.uniform_int(1, 12));
+    std::vector<std::uint8_t> flags(static_cast<std::size_t>(res.x * res.y * res.z));
+    const double density = rng.uniform(0.1, 1.0);
+    for (auto& f : flags) f = rng.chance(density) ? 5 : 2;  // Bit 1 set or not, other bits noise.
+    const int side = rng.uniform_int(1, 8);
+    std::vector<detail::VoxBox> boxes;
+    std::vector<std::uint32_t> owner;
+    detail::cover_with_boxes(res, flags, 1, side, &boxes, &owner);
+    auto at = [&](int x, int y, int z) { return static_cast<std::size_t>(x + res.x * (y + res.y * z)); };
+    for (const detail::VoxBox& b : boxes) {
+      for (int a = 0; a < 3; ++a) {
+        ASSERT_GE(b.lo[a], 0);
+        ASSERT_LT(b.hi[a], res[a]);
+        ASSERT_LE(b.hi[a] - b.lo[a] + 1, side);
+      }
+      for (int z = b.lo.z; z <= b.hi.z; ++z)
+        for (int y = b.lo.y; y <= b.hi.y; ++y)
+          for (int x = b.lo.x; x <= b.hi.x; ++x) ASSERT_TRUE(flags[at(x, y, z)] & 1) << "box over a clear voxel";
+    }
+    for (int z = 0; z < res.z; ++z)
+      for (int y = 0; y < res.y; ++y)
+        for (int x = 0; x < res.x; ++x) {
+          const std::size_t i = at(x, y, z);
+          if (!(flags[i] & 1)) continue;
+          ASSERT_FALSE(owner.empty());
+          ASSERT_NE(owner[i], detail::kNoBox);
+          const detail::VoxBox& b = boxes[owner[i]];
+          EXPECT_TRUE(x >= b.lo.x && x <= b.hi.x && y >= b.lo.y && y <= b.hi.y && z >= b.lo.z && z <= b.hi.z);
+        }
+  }
+}
+
+TEST(OpaqueBoxes, LowGroundReachesUnderHigherGround) {
+  // Two columns of ground, 2 and 4 voxels high: the box grown from the low
+  // side's top voxel also spans the high side's lower voxels, so the
+  // concave edge between them lies inside one box.
+  const glm::ivec3 res(2, 4, 1);
+  std::vector<std::uint8_t> flags(8, 0);
+  for (int y = 0; y < 4; ++y) flags[static_cast<std::size_t>(1 + 2 * y)] = 1;  // x = 1: 4 high.
+  for (int y = 0; y < 2; ++y) flags[static_cast<std::size_t>(0 + 2 * y)] = 1;  // x = 0: 2 high.
+  std::vector<detail::VoxBox> boxes;
+  std::vector<std::uint32_t> owner;
+  detail::cover_with_boxes(res, flags, 1, 16, &boxes, &owner);
+  const detail::VoxBox& low = boxes[owner[0]];
+  EXPECT_EQ(low.lo, glm::ivec3(0, 0, 0));
+  EXPECT_EQ(low.hi, glm::ivec3(1, 1, 0));
+  const detail::VoxBox& high = boxes[owner[static_cast<std::size_t>(1 + 2 * 3)]];
+  EXPECT_EQ(high.lo.x, 1);
+  EXPECT_EQ(high.hi.y, 3);
+}
+
+TEST(OpaqueBoxes, NoneWithoutTheBit) {
+  std::vector<std::uint8_t> flags(27, 2);
+  std::vector<detail::VoxBox> boxes;
+  std::vector<std::uint32_t> owner;
+  detail::cover_with_boxes(glm::ivec3(3), flags, 1, 16, &boxes, &owner);
+  EXPECT_TRUE(boxes.empty());
+  EXPECT_TRUE(owner.empty());
+}
+
+}  // namespace
+}  // namespace voxvis::test
