@@ -40,7 +40,9 @@
 //     barely depend on N: compare median_us of n:100000 against n:1000
 //     (run_bench.sh prints the ratio; the goal is at most +20%). max_us,
 //     p99_us and tbvs_expired_total/tbvs_created_total show the cost of TBV
-//     expiry waves inside the timed window.
+//     expiry waves inside the timed window; revealed_total counts TBVs
+//     revealed in it (hidden objects woken). With /ob:256 the same with the
+//     occlusion buffer at 256 pixels.
 //
 // Filter with --benchmark_filter=walkthrough, hidden_dynamic, indoor, voxel_world
 // or city (a regular expression: 'city/ob:256', 'ob:(128|512)').
@@ -285,10 +287,12 @@ HiddenScene make_hidden_scene(int n) {
   return h;
 }
 
-void BM_HiddenDynamic(benchmark::State& state, int n) {
+void BM_HiddenDynamic(benchmark::State& state, int n, int ob) {
   const HiddenScene h = make_hidden_scene(n);
   std::unique_ptr<Scene> scene;
-  if (const Status st = Scene::create(h.desc, SceneOptions{}, &scene); !st.ok) {
+  SceneOptions options;
+  options.occlusion_buffer = ob;
+  if (const Status st = Scene::create(h.desc, options, &scene); !st.ok) {
     state.SkipWithError(("Scene::create: " + st.str()).c_str());
     return;
   }
@@ -335,6 +339,7 @@ void BM_HiddenDynamic(benchmark::State& state, int n) {
   double tbvs = 0.0;
   double expired = 0.0;
   double created = 0.0;
+  double revealed = 0.0;
   for (auto _ : state) {
     if (!run_step()) {
       state.SkipWithError("frame failed");
@@ -346,6 +351,7 @@ void BM_HiddenDynamic(benchmark::State& state, int n) {
     tbvs += static_cast<double>(result.stats.tbvs_active);
     expired += static_cast<double>(result.stats.tbvs_expired);
     created += static_cast<double>(result.stats.tbvs_created);
+    revealed += static_cast<double>(result.stats.tbvs_revealed);
     benchmark::DoNotOptimize(result.pvs.data());
   }
   const double frames = static_cast<double>(std::max<std::size_t>(1, times.size()));
@@ -357,6 +363,7 @@ void BM_HiddenDynamic(benchmark::State& state, int n) {
   state.counters["max_us"] = times.empty() ? 0.0 : *std::max_element(times.begin(), times.end());
   state.counters["tbvs_expired_total"] = expired;
   state.counters["tbvs_created_total"] = created;
+  state.counters["revealed_total"] = revealed;
   state.counters["hidden"] = static_cast<double>(n);
   state.SetItemsProcessed(static_cast<std::int64_t>(times.size()));
 }
@@ -384,13 +391,14 @@ void register_all() {
           ->Iterations(598)
           ->Unit(benchmark::kMicrosecond);
     }
-  for (int n : {1000, 10000, 100000}) {
-    const std::string name = "hidden_dynamic/n:" + std::to_string(n);
-    // 600 frames: 10 s of scene time at 60 fps.
-    benchmark::RegisterBenchmark(name.c_str(), BM_HiddenDynamic, n)
-        ->Iterations(600)
-        ->Unit(benchmark::kMicrosecond);
-  }
+  for (int ob : {0, 256})
+    for (int n : {1000, 10000, 100000}) {
+      const std::string name = "hidden_dynamic/n:" + std::to_string(n) + suffix(ob);
+      // 600 frames: 10 s of scene time at 60 fps.
+      benchmark::RegisterBenchmark(name.c_str(), BM_HiddenDynamic, n, ob)
+          ->Iterations(600)
+          ->Unit(benchmark::kMicrosecond);
+    }
 }
 
 }  // namespace
