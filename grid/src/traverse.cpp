@@ -44,6 +44,12 @@ constexpr std::uint32_t kLive = 1;
 constexpr std::uint32_t kBlocked = 2;
 constexpr double kUlp = std::numeric_limits<double>::epsilon();
 
+/// Whether the buffer proves an object (at the position the scene holds)
+/// hidden: a ball by its own outline, a box by itself.
+bool ob_hides_object(const detail::OcclusionBuffer& ob, const Obj& o) {
+  return o.shape == Shape::Sphere ? ob.hides_sphere(o.center, o.radius) : ob.hides_world(o.box_lo(), o.box_hi());
+}
+
 /// Inclusive box of local voxel coordinates.
 struct IBox {
   std::int64_t lo[3];
@@ -118,9 +124,7 @@ class Traversal {
     if (!wf_.may_intersect_box(o.box_lo(), o.box_hi())) return;
     detail::OcclusionBuffer& ob = w_.ob;
     if (ob.on()) {
-      const bool hidden = o.shape == Shape::Sphere ? ob.hides_sphere(o.center, o.radius)
-                                                   : ob.hides_world(o.box_lo(), o.box_hi());
-      if (hidden) {
+      if (ob_hides_object(ob, o)) {
         ++st_.ob_objects_culled;
         return;
       }
@@ -753,7 +757,7 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
       ++st.outside_tested;
       const Obj& o = s.objs[slot];
       if (outside_part_visible(wf, s.spec, o.box_lo(), o.box_hi())) {
-        if (w.ob.hides_world(o.box_lo(), o.box_hi())) {
+        if (ob_hides_object(w.ob, o)) {
           ++st.ob_objects_culled;
           continue;
         }
@@ -766,11 +770,7 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
     // once more against the whole buffer. Sound in any order: a bound says
     // only that some object (in the PVS or not) hides what lies behind it.
     if (w.ob.on()) {
-      auto hidden = [&](std::uint32_t slot) {
-        const Obj& o = s.objs[slot];
-        return o.shape == Shape::Sphere ? w.ob.hides_sphere(o.center, o.radius)
-                                        : w.ob.hides_world(o.box_lo(), o.box_hi());
-      };
+      auto hidden = [&](std::uint32_t slot) { return ob_hides_object(w.ob, s.objs[slot]); };
       const std::size_t before = w.pvs.size();
       w.pvs.erase(std::remove_if(w.pvs.begin(), w.pvs.end(), hidden), w.pvs.end());
       w.deferred.erase(std::remove_if(w.deferred.begin(), w.deferred.end(),
