@@ -4,6 +4,7 @@
 // lets abutting blocks and walls fuse in the buffer.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <string>
 
 #include "engine_check.h"
@@ -42,6 +43,31 @@ TEST(BufferScenes, VoxelWorldCaveAndSurface) {
     replay(p, 128, cave ? "voxel world, cave" : "voxel world, surface", &with, &without);
     if (HasFatalFailure()) return;
     EXPECT_LT(with, 0.8 * without) << (cave ? "cave" : "surface");
+  }
+}
+
+TEST(BufferScenes, OffsetAndScaledVoxelWorld) {
+  // Opaque boxes and the buffer where the grid mapping rounds: far from the
+  // origin, at a thousandth and a thousand times the size. Zero misses in
+  // all; culling where the blocks are larger than the rounding allowances
+  // (1e-9 of the coordinates' magnitude): millimetre blocks a thousand
+  // kilometres out are below them, and nothing is culled there, with or
+  // without the buffer.
+  const ScenePath base = make_voxel_world(24, std::max(4, scaled(10)), true, 8);
+  for (const auto& [scale, offset] : {std::pair{1e-3, Vec3(1e6)}, {1e-3, Vec3(1e2)}, {1.0, Vec3(-3e5, 7e5, 1e6)},
+                                      {1e3, Vec3(0.0)}}) {
+    SCOPED_TRACE("scale " + std::to_string(scale) + " offset " + std::to_string(offset.x));
+    ScenePath p;
+    p.scene = transform_scene(base.scene, scale, offset);
+    for (const Camera& c : base.cameras) p.cameras.push_back(transform_camera(c, scale, offset));
+    double with = 0.0, without = 0.0;
+    replay(p, 128, "transformed voxel world", &with, &without);
+    if (HasFatalFailure()) return;
+    const bool above_rounding = scale * 1e-3 > 1e-9 * (scale * 24.0 + std::fabs(offset.x));
+    if (above_rounding) {
+      EXPECT_LT(with, without);
+    }
+    EXPECT_LE(with, without);
   }
 }
 

@@ -376,14 +376,18 @@ TEST(HardCases, OffsetAndScaledWorldsHaveZeroMisses) {
   };
   const Xf xfs[] = {{1.0, Vec3(0.0)},        {1.0, Vec3(1e6)},   {1e-3, Vec3(0.0)},
                     {1e-3, Vec3(1e6)},       {1e-3, Vec3(-1e6, 1e6, 3e5)}, {1e3, Vec3(-1e6)}};
-  for (std::uint64_t seed : {21ULL, 22ULL, 23ULL}) {
+  // With the occlusion buffer off and on: its rounding allowances scale
+  // with the coordinates too.
+  for (const auto& [seed, ob] : {std::pair{21ULL, 0}, {22ULL, 0}, {23ULL, 0}, {24ULL, 128}, {25ULL, 128}}) {
     const SceneDesc base = random_scene(random_scene_params(seed), seed);
     const std::vector<Camera> path = random_camera_path(base, seed, {.frames = 12});
+    SceneOptions options;
+    options.occlusion_buffer = ob;
     for (const Xf& xf : xfs) {
       SCOPED_TRACE("seed " + std::to_string(seed) + " scale " + std::to_string(xf.scale) +
-                   " offset " + std::to_string(xf.offset.x));
+                   " offset " + std::to_string(xf.offset.x) + " ob " + std::to_string(ob));
       const SceneDesc scene = transform_scene(base, xf.scale, xf.offset);
-      EngineHarness h(scene, {}, describe_scene(scene, seed));
+      EngineHarness h(scene, options, describe_scene(scene, seed));
       ASSERT_TRUE(h.status().ok) << h.status().str();
       Mover mover(base, seed);
       for (int f = 0; f < 12; ++f) {
