@@ -1,6 +1,7 @@
 // scene.cpp — scene construction, conservative discretization, moves and
 // temporal bounding volumes. The per-frame traversal is in traverse.cpp.
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdio>
 #include <iterator>
@@ -90,6 +91,8 @@ Status validate_desc(const SceneDesc& d, const SceneOptions& opt) {
     return Status::Error("tbv_max_voxels", "must be finite and >= tbv_voxels");
   if (!(opt.tbv_max_period > 0.0) || !std::isfinite(opt.tbv_max_period))
     return Status::Error("tbv_max_period", "must be finite and > 0");
+  if (!(opt.tbv_seen_memory >= 0.0) || !std::isfinite(opt.tbv_seen_memory))
+    return Status::Error("tbv_seen_memory", "must be a finite number of seconds >= 0");
   if (opt.occlusion_buffer != 0 &&
       (opt.occlusion_buffer < 8 || opt.occlusion_buffer > detail::OcclusionBuffer::kMaxSide))
     return Status::Error("occlusion_buffer", "must be 0 (off) or a width in pixels from 8 to " +
@@ -469,7 +472,8 @@ double Scene::Impl::max_period(const Obj& o) const {
   return std::clamp(options.tbv_max_voxels * vmin / o.max_speed, 1e-3, options.tbv_max_period);
 }
 
-double Scene::Impl::tbv_box(std::uint32_t slot, Vec3* lo_out, Vec3* hi_out) const {
+double Scene::Impl::tbv_box(std::uint32_t slot, Vec3* lo_out, Vec3* hi_out, bool* cut) const {
+  if (cut) *cut = false;
   const Obj& o = objs[slot];
   // Every centre reachable before expiry is within max_speed * period of the
   // current one, so the object's box grown by that much bounds it (Sudarsky &
@@ -491,8 +495,118 @@ double Scene::Impl::tbv_box(std::uint32_t slot, Vec3* lo_out, Vec3* hi_out) cons
   const Vec3 lo = o.box_lo(), hi = o.box_hi();
   *lo_out = glm::min(lo, glm::max(lo - grow, spec.bounds_min));
   *hi_out = glm::max(hi, glm::min(hi + grow, spec.bounds_max));
+  // Nor into space a viewer sees now: a TBV there would be revealed at once,
+  // waking an object that cannot be seen where it is. The growth (and with it
+  // the period) is cut to what keeps clear of the seen bricks, so the TBV
+  // still holds every position the object can reach before it expires. When
+  // that leaves less than a quarter of the first TBV's growth (the object is
+  // next to seen space anyway), the TBV is left as it was.
+  const double vmin = std::fmin(spec.voxel_size.x, std::fmin(spec.voxel_size.y, spec.voxel_size.z));
+  double room_brick = 0.0;
+  const double floor = 0.25 * options.tbv_voxels * vmin;
+  double room = unseen_growth(o, *lo_out, *hi_out, &room_brick);
+  if (room_brick >= floor) room = room_brick;
+  if (room < grow && room >= floor) {
+    if (cut) *cut = true;
+    *lo_out = glm::min(lo, glm::max(lo - room, spec.bounds_min));
+    *hi_out = glm::max(hi, glm::min(hi + room, spec.bounds_max));
+    return std::fmax(period * (room / grow), 1e-3);
+  }
   return period;
 }
+
+double Scene::Impl::unseen_growth(const Obj& o, const Vec3& lo, const Vec3& hi, double* room_brick) const {
+  const double inf = std::numeric_limits<double>::infinity();
+  *room_brick = inf;
+  if (!(time - last_seen_at <= options.tbv_seen_memory)) return inf;
+  const double s = slop(std::fmax(max_abs(lo), max_abs(hi)));
+  const VoxBox own = touch_range(o.box_lo(), o.box_hi(), s);
+  const VoxBox want = touch_range(lo, hi, s);
+  if (own.empty() || want.empty()) return inf;  // Beyond the grid: no bricks to keep clear of.
+  // Grow a brick range from the object's own bricks towards the wanted ones,
+  // a layer at a time on each side, while the new layer holds no voxel seen
+  // recently; a face is held at the first layer that does.
+  glm::ivec3 r[2] = {own.lo >> detail::kBrickShift, own.hi >> detail::kBrickShift};
+  const glm::ivec3 t[2] = {want.lo >> detail::kBrickShift, want.hi >> detail::kBrickShift};
+  // The seen voxels of a layer, as one mask of a brick's 64 voxels (bit
+  // x + 4y + 16z) OR-ed over the layer's bricks: 0 when the layer is clear.
+  auto layer_seen = [&](int a, int c) {
+    glm::ivec3 l = r[0], h = r[1];
+    l[a] = h[a] = c;
+    std::uint64_t m = 0;
+    for (int z = l.z; z <= h.z; ++z)
+      for (int y = l.y; y <= h.y; ++y)
+        for (int x = l.x; x <= h.x; ++x) {
+          const auto b = static_cast<std::size_t>(x + std::int64_t{bricks_res.x} * (y + std::int64_t{bricks_res.y} * z));
+          if (seen_recently(b)) m |= seen_mask[b];
+        }
+    return m;
+  };
+  // Voxels of a brick whose coordinate on axis a is k.
+  auto plane = [](int a, int k) {
+    static constexpr std::uint64_t kPlane0[3] = {0x1111111111111111ull, 0x000F000F000F000Full, 0xFFFFull};
+    return kPlane0[a] << (k << (2 * a));
+  };
+  // The held faces, grid coordinates: half a voxel short of the nearest
+  // seen voxel, so that the rounding allowance of touch_range cannot reach it.
+  const int bs = 1 << detail::kBrickShift;
+  double face[2][3];
+  bool held[2][3] = {};
+  for (bool grew = true; grew;) {
+    grew = false;
+    for (int a = 0; a < 3; ++a)
+      for (int side = 0; side < 2; ++side) {
+        const int step = side ? 1 : -1;
+        if (held[side][a] || r[side][a] == t[side][a]) continue;
+        const int c = r[side][a] + step;
+        const std::uint64_t m = layer_seen(a, c);
+        if (m == 0) {
+          r[side][a] = c;
+          grew = true;
+          continue;
+        }
+        held[side][a] = true;
+        if (side == 0) {
+          int k = bs - 1;
+          while ((m & plane(a, k)) == 0) --k;
+          face[0][a] = c * bs + k + 1.5;
+        } else {
+          int k = 0;
+          while ((m & plane(a, k)) == 0) ++k;
+          face[1][a] = c * bs + k - 0.5;
+        }
+      }
+  }
+  // The same, held short of the whole layer: a TBV that reaches into a
+  // brick with seen voxels costs every visit of that brick's voxels.
+  double room = inf;
+  *room_brick = inf;
+  for (int a = 0; a < 3; ++a) {
+    const double olo = o.box_lo()[a] - spec.bounds_min[a], ohi = o.box_hi()[a] - spec.bounds_min[a];
+    const double v = spec.voxel_size[a];
+    if (held[0][a]) {
+      room = std::fmin(room, olo - face[0][a] * v);
+      *room_brick = std::fmin(*room_brick, olo - (r[0][a] * bs + 0.5) * v);
+    }
+    if (held[1][a]) {
+      room = std::fmin(room, face[1][a] * v - ohi);
+      *room_brick = std::fmin(*room_brick, ((r[1][a] + 1) * bs - 0.5) * v - ohi);
+    }
+  }
+  return room;
+}
+
+void Scene::Impl::mark_seen(Scratch::Impl& w, double t) {
+  for (std::uint32_t b : w.seen_list) {
+    // A brick not seen within the memory forgets its old voxels.
+    seen_mask[b] = seen_recently(b) ? seen_mask[b] | w.seen_vox[b] : w.seen_vox[b];
+    seen_at[b] = t;
+    w.seen_vox[b] = 0;
+    last_seen_at = t;
+  }
+  w.seen_list.clear();
+}
+
 
 void Scene::Impl::make_tbv(std::uint32_t slot, double now) {
   Obj& o = objs[slot];
@@ -525,9 +639,19 @@ void Scene::Impl::renew_tbv(std::uint32_t slot, double now) {
   // The object has not moved since its TBV was made (the common case for a
   // hidden object nobody simulates): the new box has the same centre, so the
   // union of old and new is a valid TBV, and only the bricks it adds need
-  // writing. A renewal at the growth cap then costs no brick at all.
+  // writing. A renewal at the growth cap then costs no brick at all. But a
+  // box cut short by seen space is made anew: the old one may reach into
+  // space seen since it was made, which would reveal it.
   Vec3 lo, hi;
-  const double period = tbv_box(slot, &lo, &hi);
+  bool cut = false;
+  const double period = tbv_box(slot, &lo, &hi, &cut);
+  if (cut) {
+    const std::uint64_t epoch = wake_epoch;
+    drop_tbv(slot);
+    make_tbv(slot, now);
+    wake_epoch = epoch;
+    return;
+  }
   o.tbv_lo = glm::min(o.tbv_lo, lo);
   o.tbv_hi = glm::max(o.tbv_hi, hi);
   const VoxBox old_vb = o.tbv_voxels;
@@ -693,6 +817,8 @@ Status Scene::create(const SceneDesc& desc, const SceneOptions& options, std::un
   if (s.dynamic_count > 0) {
     s.bricks_res = (s.res + ((1 << detail::kBrickShift) - 1)) >> detail::kBrickShift;
     s.bricks.resize(static_cast<std::size_t>(std::int64_t{s.bricks_res.x} * s.bricks_res.y * s.bricks_res.z));
+    s.seen_at.assign(s.bricks.size(), -std::numeric_limits<double>::infinity());
+    s.seen_mask.assign(s.bricks.size(), 0);
     // Until a viewer has looked, every object may be visible: discretize all
     // dynamic objects now; those no viewer claims get TBVs after a frame.
     for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {

@@ -119,6 +119,11 @@ struct Scratch::Impl {
   detail::OcclusionBuffer ob;
   /// Per opaque box (Scene::Impl::opaque_boxes): frame it was rendered in.
   std::vector<std::uint32_t> box_seen;
+  /// Voxels this frame saw (reached and not proven hidden), per brick a mask
+  /// of its 64 voxels (bit x + 4y + 16z), and the bricks with a bit set.
+  /// Scenes with dynamic objects only; emptied by Scene::Impl::mark_seen.
+  std::vector<std::uint64_t> seen_vox;
+  std::vector<std::uint32_t> seen_list;
 
   /// Starts a frame for a scene of `voxels` voxels, `objects` slots and
   /// `boxes` opaque boxes.
@@ -153,6 +158,13 @@ struct Scene::Impl {
   // Dynamic layer (allocated only when the scene has dynamic objects).
   glm::ivec3 bricks_res{0};
   std::vector<detail::Brick> bricks;
+  /// Per brick: the latest scene time a frame saw a voxel of it (reached it
+  /// and did not prove it hidden), -inf if never, and which voxels frames
+  /// saw since it was last forgotten (Scratch::Impl::seen_vox). TBVs keep
+  /// clear of voxels seen within SceneOptions::tbv_seen_memory.
+  std::vector<double> seen_at;
+  std::vector<std::uint64_t> seen_mask;
+  double last_seen_at = -std::numeric_limits<double>::infinity();  ///< Latest of seen_at.
 
   // Beyond the grid.
   std::vector<std::uint32_t> outside_objs;
@@ -220,9 +232,21 @@ struct Scene::Impl {
   /// Gives an expired TBV a new validity period (see scene.cpp).
   void renew_tbv(std::uint32_t slot, double now);
   /// The TBV box for the object's current centre and a period starting now;
-  /// returns the (jittered) period.
-  double tbv_box(std::uint32_t slot, Vec3* lo, Vec3* hi) const;
+  /// returns the (jittered) period. `cut` (if given) says whether seen space
+  /// cut the growth short.
+  double tbv_box(std::uint32_t slot, Vec3* lo, Vec3* hi, bool* cut = nullptr) const;
   void drop_tbv(std::uint32_t slot);
+  /// How far (world units, on every side) the box of object `o` may grow
+  /// towards the TBV box [lo, hi] and touch no brick a viewer currently sees;
+  /// infinity when nothing is in the way (docs/design.md, "Temporal bounding
+  /// volumes"). `room_brick`: the same, keeping out of every brick that holds
+  /// a seen voxel.
+  double unseen_growth(const detail::Obj& o, const Vec3& lo, const Vec3& hi, double* room_brick) const;
+  /// Records the voxels a frame at time t saw, and empties w's record.
+  void mark_seen(Scratch::Impl& w, double t);
+  bool seen_recently(std::size_t brick) const {
+    return time - seen_at[brick] <= options.tbv_seen_memory;
+  }
   void reveal(std::uint32_t slot);
   void list_add(std::vector<std::uint32_t>& list, std::int32_t& pos, std::uint32_t slot);
   void list_remove(std::vector<std::uint32_t>& list, std::int32_t& pos, bool tbv);

@@ -355,10 +355,16 @@ void Traversal::collect(std::int64_t idx, const std::int64_t v[3], std::uint8_t 
   const int gx = static_cast<int>(E_[0] + v[0]);
   const int gy = static_cast<int>(E_[1] + v[1]);
   const int gz = static_cast<int>(E_[2] + v[2]);
-  const detail::Brick& brick = s_.bricks[static_cast<std::size_t>(
+  const auto bi = static_cast<std::size_t>(
       (gx >> detail::kBrickShift) +
-      s_.bricks_res.x * ((gy >> detail::kBrickShift) +
-                         std::int64_t{s_.bricks_res.y} * (gz >> detail::kBrickShift)))];
+      s_.bricks_res.x * ((gy >> detail::kBrickShift) + std::int64_t{s_.bricks_res.y} * (gz >> detail::kBrickShift)));
+  // The voxel is in view and not proven hidden: this viewer sees its brick,
+  // which TBVs made after this frame keep clear of.
+  static_assert(detail::kBrickShift == 2, "a brick's voxels are the 64 bits of a mask");
+  std::uint64_t& seen = w_.seen_vox[bi];
+  if (seen == 0) w_.seen_list.push_back(static_cast<std::uint32_t>(bi));
+  seen |= std::uint64_t{1} << ((gx & 3) | (gy & 3) << 2 | (gz & 3) << 4);
+  const detail::Brick& brick = s_.bricks[bi];
   if (brick.live == 0) return;
   for (const detail::BrickEntry& e : brick.entries) {
     if (!s_.current(e)) continue;
@@ -674,6 +680,10 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
   const auto start = std::chrono::steady_clock::now();
   Scratch::Impl& w = scratch.impl();
   w.begin(static_cast<std::size_t>(s.spec.voxel_count()), s.objs.size(), s.opaque_boxes.size());
+  // A frame that ended early (an error) may have left its record behind.
+  for (std::uint32_t b : w.seen_list) w.seen_vox[b] = 0;
+  w.seen_list.clear();
+  if (w.seen_vox.size() < s.bricks.size()) w.seen_vox.resize(s.bricks.size(), 0);
   const WorldFrustum wf = detail::make_world_frustum(camera);
   FrameStats st;
   std::vector<std::uint32_t> wake;
@@ -810,6 +820,7 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
     }
   }
   detail::ViewerState& vs = vit->second;
+  s.mark_seen(w, t);
   {
     auto a = vs.last_pvs.begin();
     auto b = pvs.begin();

@@ -340,6 +340,9 @@ void BM_HiddenDynamic(benchmark::State& state, int n, int ob) {
   double expired = 0.0;
   double created = 0.0;
   double revealed = 0.0;
+  double woken = 0.0;
+  double hidden_in_pvs = 0.0;
+  const ObjectId first_hidden = h.hidden.empty() ? 0 : h.hidden.front();
   for (auto _ : state) {
     if (!run_step()) {
       state.SkipWithError("frame failed");
@@ -352,6 +355,9 @@ void BM_HiddenDynamic(benchmark::State& state, int n, int ob) {
     expired += static_cast<double>(result.stats.tbvs_expired);
     created += static_cast<double>(result.stats.tbvs_created);
     revealed += static_cast<double>(result.stats.tbvs_revealed);
+    woken += static_cast<double>(result.wake.size());
+    hidden_in_pvs += static_cast<double>(
+        std::count_if(result.pvs.begin(), result.pvs.end(), [&](ObjectId id) { return id >= first_hidden; }));
     benchmark::DoNotOptimize(result.pvs.data());
   }
   const double frames = static_cast<double>(std::max<std::size_t>(1, times.size()));
@@ -364,6 +370,8 @@ void BM_HiddenDynamic(benchmark::State& state, int n, int ob) {
   state.counters["tbvs_expired_total"] = expired;
   state.counters["tbvs_created_total"] = created;
   state.counters["revealed_total"] = revealed;
+  state.counters["woken_total"] = woken;
+  state.counters["hidden_in_pvs_total"] = hidden_in_pvs;
   state.counters["hidden"] = static_cast<double>(n);
   state.SetItemsProcessed(static_cast<std::int64_t>(times.size()));
 }

@@ -64,6 +64,11 @@ struct SceneOptions {
   double tbv_max_voxels = 8.0;
   /// Upper bound for any TBV validity period, seconds.
   double tbv_max_period = 60.0;
+  /// TBVs keep clear of space a viewer saw within this many seconds: their
+  /// growth and period are cut to the distance to it (docs/design.md,
+  /// "Temporal bounding volumes"), so hidden objects next to a room in view
+  /// are not revealed and woken. Finite, >= 0.
+  double tbv_seen_memory = 10.0;
   /// Width in pixels of the conservative occlusion buffer each frame renders
   /// the objects it finds into and tests voxels, objects and TBVs against
   /// (height from the camera's aspect, square pixels); 0 turns it off.

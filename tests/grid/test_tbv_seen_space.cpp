@@ -1,0 +1,149 @@
+// TBVs keep clear of the space viewers see (docs/design.md, "Temporal
+// bounding volumes"): hidden moving objects around a closed room stay
+// hidden, unrevealed and off the wake list except when their TBV expires,
+// while every frame keeps zero misses against the ray caster.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <glm/geometric.hpp>
+#include <glm/vector_relational.hpp>
+
+#include "engine_check.h"
+#include "scenes.h"
+#include "voxvis/scene.h"
+
+namespace voxvis::test {
+namespace {
+
+constexpr double kDt = 1.0 / 30.0;
+constexpr ObjectId kFirstHidden = 100;
+
+/// Bounds 0..48 on a 48^3 grid of unit voxels; a closed room (outer box
+/// [12, 36]^3, walls 2 voxels thick on voxel planes) with a few static
+/// spheres inside; `n` dynamic spheres (radius 0.3) outside it, at least 2
+/// voxels from its walls, with `max_speed`.
+SceneDesc room_with_hidden(int n, double max_speed, std::uint64_t seed) {
+  SceneDesc s;
+  s.bounds_min = Vec3(0.0);
+  s.bounds_max = Vec3(48.0);
+  s.grid = glm::ivec3(48);
+  ObjectId id = 1;
+  const Vec3 lo(12.0), hi(36.0);
+  for (int a = 0; a < 3; ++a)
+    for (int side = 0; side < 2; ++side) {
+      Vec3 wlo = lo, whi = hi;
+      if (side == 0)
+        whi[a] = lo[a] + 2.0;
+      else
+        wlo[a] = hi[a] - 2.0;
+      s.objects.push_back(box_between(id++, wlo, whi));
+    }
+  Rng rng(seed);
+  for (int i = 0; i < 6; ++i) s.objects.push_back(sphere(id++, rng.in_box(Vec3(17.0), Vec3(31.0)), 1.0));
+  id = kFirstHidden;
+  while (static_cast<int>(s.objects.size()) < 12 + n) {
+    const Vec3 c = rng.in_box(Vec3(1.0), Vec3(47.0));
+    if (glm::all(glm::greaterThan(c, Vec3(10.0))) && glm::all(glm::lessThan(c, Vec3(38.0)))) continue;
+    s.objects.push_back(dynamic(sphere(id++, c, 0.3), max_speed));
+  }
+  return s;
+}
+
+/// The eye at the room's centre, turning about the vertical axis: one whole
+/// turn in the first second (30 frames), slowly after that.
+Camera turning_camera(int frame) {
+  Camera c;
+  const double a = frame < 30 ? 0.22 * frame : 6.6 + 0.02 * (frame - 30);
+  c.eye = Vec3(24.0, 24.5, 24.0);
+  c.dir = Vec3(std::cos(a), -0.2, std::sin(a));
+  c.up = Vec3(0.0, 1.0, 0.0);
+  c.fov_y_deg = 75.0;
+  c.aspect = 16.0 / 9.0;
+  c.near = 0.05;
+  c.far = 500.0;
+  return c;
+}
+
+std::size_t hidden_in(const std::vector<ObjectId>& ids) {
+  return static_cast<std::size_t>(
+      std::count_if(ids.begin(), ids.end(), [](ObjectId id) { return id >= kFirstHidden; }));
+}
+
+TEST(TbvSeenSpace, HiddenObjectsAroundAClosedRoomAreNeverRevealed) {
+  // Periods grow to the time to cross 8 voxels (12 with the per-object
+  // factor): grown as they were, TBVs of objects 2 voxels outside the room
+  // reach through its 2-voxel walls into the space the eye sees.
+  EngineHarness h(room_with_hidden(400, 3.0, 77), {}, "closed room, 400 hidden");
+  ASSERT_TRUE(h.status().ok) << h.status().str();
+  double t = 0.0;
+  int f = 0;
+  for (; f < 30; ++f, t += kDt) ASSERT_EQ(h.frame(turning_camera(f), t), "") << "frame " << f;
+  ASSERT_EQ(h.last().stats.tbvs_active, 400u);
+  std::uint32_t revealed = 0, expired = 0;
+  std::size_t in_pvs = 0;
+  for (; f < 150; ++f, t += kDt) {
+    ASSERT_EQ(h.frame(turning_camera(f), t), "") << "frame " << f;
+    const FrameResult& r = h.last();
+    revealed += r.stats.tbvs_revealed;
+    expired += r.stats.tbvs_expired;
+    in_pvs += hidden_in(r.pvs);
+    // Only expiry wakes a hidden object (a lazily simulating backend must
+    // bring it up to date before it could have walked into view).
+    EXPECT_EQ(r.wake.size(), r.stats.tbvs_expired) << "frame " << f;
+  }
+  EXPECT_EQ(revealed, 0u);
+  EXPECT_EQ(in_pvs, 0u);
+  EXPECT_GT(expired, 400u);  // Every TBV was renewed at least once on average.
+}
+
+TEST(TbvSeenSpace, AnObjectWalkingIntoTheRoomIsRevealedAndSeen) {
+  // Objects walk at their speed limit straight into the room (through its
+  // wall). Their moves leave TBVs that keep clear of the room, so each is
+  // revealed by a move; the harness checks every frame for misses.
+  SceneDesc scene = room_with_hidden(40, 3.0, 78);
+  std::vector<std::pair<ObjectId, Vec3>> walkers;
+  for (const ObjectDesc& o : scene.objects)
+    if (o.id >= kFirstHidden && walkers.size() < 8) walkers.emplace_back(o.id, o.center);
+  EngineHarness h(scene, {}, "closed room, walkers");
+  ASSERT_TRUE(h.status().ok) << h.status().str();
+  double t = 0.0;
+  int f = 0;
+  for (; f < 30; ++f, t += kDt) ASSERT_EQ(h.frame(turning_camera(f), t), "") << "frame " << f;
+  std::uint32_t revealed = 0;
+  std::size_t walkers_seen = 0;
+  for (; f < 330; ++f, t += kDt) {
+    std::vector<Move> moves;
+    for (auto& [id, c] : walkers) {
+      const Vec3 to = Vec3(24.0) - c;
+      const double len = std::sqrt(glm::dot(to, to));
+      if (len > 0.5) c += to * (0.95 * 3.0 * kDt / len);
+      moves.push_back({id, c});
+    }
+    ASSERT_TRUE(h.move(t, moves).ok);
+    ASSERT_EQ(h.frame(turning_camera(f), t), "") << "frame " << f;
+    revealed += h.last().stats.tbvs_revealed;
+    walkers_seen = std::max(walkers_seen, hidden_in(h.last().pvs));
+  }
+  EXPECT_GE(revealed, walkers.size());
+  EXPECT_GT(walkers_seen, 0u);
+}
+
+TEST(TbvSeenSpace, BadSeenMemoryIsRefusedByName) {
+  for (double bad : {-1.0, std::nan(""), std::numeric_limits<double>::infinity()}) {
+    SceneOptions options;
+    options.tbv_seen_memory = bad;
+    std::unique_ptr<Scene> scene;
+    const Status st = Scene::create(room_with_hidden(4, 1.0, 1), options, &scene);
+    EXPECT_FALSE(st.ok) << bad;
+    EXPECT_NE(st.str().find("tbv_seen_memory"), std::string::npos) << st.str();
+  }
+}
+
+}  // namespace
+}  // namespace voxvis::test
