@@ -88,6 +88,11 @@ int run(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--max-message-mib", max_message_mib, "Largest message accepted or sent, MiB")
       ->capture_default_str();
+  app.add_option("--occlusion-buffer", config.scene_options.occlusion_buffer,
+                 "Width in pixels of the conservative occlusion buffer of every scene served "
+                 "(8..4096; 0: off); the same answers as `voxvis replay --occlusion-buffer`")
+      ->type_name("PIXELS")
+      ->capture_default_str();
   app.add_flag("--reflection", config.reflection,
                "Serve gRPC server reflection, which answers without a token: trusted networks only");
   app.add_option("--port-file", config.port_file,

@@ -49,6 +49,16 @@ std::string id_from_path(const std::string& path) {
   return stem;
 }
 
+/// The engine's own check of `options` (Scene::create validates them with
+/// the description, before it allocates the grid): a one-voxel empty scene,
+/// built and dropped, costs next to nothing.
+Status check_scene_options(const SceneOptions& options) {
+  SceneDesc probe;
+  probe.grid = glm::ivec3(1);
+  std::unique_ptr<Scene> scene;
+  return Scene::create(probe, options, &scene);
+}
+
 /// Removes server reflection from one builder. Linking gRPC's reflection
 /// library registers its plugin for every builder at static initialization,
 /// so not asking for it is not enough to leave it out.
@@ -77,6 +87,11 @@ class ServerImpl final : public Server {
       return fail(error, "--max-time-step must be within (0, 2e10] seconds");
     if (config_.tls_cert.empty() != config_.tls_key.empty())
       return fail(error, "--tls-cert and --tls-key go together");
+    // Bad scene options are a start error, not a refusal of every scene (the
+    // data directory's would be quarantined one by one).
+    if (Status s = check_scene_options(config_.scene_options); !s)
+      return fail(error, s.field == "occlusion_buffer" ? "--occlusion-buffer: " + s.message
+                                                       : "scene options: " + s.str());
     if (config_.max_calls < 1) return fail(error, "--max-calls must be >= 1");
     if (config_.max_streams_per_connection < 1)
       return fail(error, "--max-streams-per-connection must be >= 1");

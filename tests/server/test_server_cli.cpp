@@ -137,6 +137,138 @@ TEST(ServerCli, ViewMatchesReplayWhenMovesStop) {
   expect_same_output(slurp(replay_out), slurp(view_out), "voxvis view");
 }
 
+/// The lines of a `voxvis replay` output with the occlusion buffer's
+/// counters (stats.ob_*) taken out: the wire's FrameStats has no such fields.
+std::string without_buffer_counters(const std::string& text) {
+  std::string out;
+  for (const std::string& line : lines_of(text)) {
+    nlohmann::json j = nlohmann::json::parse(line, nullptr, false);
+    if (j.is_discarded() || !j.contains("stats")) return "not a replay line: " + line;
+    nlohmann::json& stats = j.at("stats");
+    for (const char* key : {"ob_width", "ob_voxels_culled", "ob_objects_culled", "ob_occluders"})
+      stats.erase(key);
+    out += j.dump() + "\n";
+  }
+  return out;
+}
+
+// --occlusion-buffer applies to every scene the server builds: one from
+// --scene, one created through the API, and one loaded again from the data
+// directory at the next start. Each answers over the socket what `voxvis
+// replay --occlusion-buffer 128` computes, which is not what the engine
+// computes without the buffer.
+TEST(ServerCli, OcclusionBufferMatchesReplayForEveryScene) {
+  const std::string examples = std::string(VOXVIS_SOURCE_DIR) + "/examples/paper";
+  const std::vector<std::string> all_frames = lines_of(slurp(examples + "/frames.jsonl"));
+  ASSERT_GE(all_frames.size(), 40u);
+  std::string frames_text;
+  for (std::size_t i = 0; i < 40; ++i) frames_text += all_frames[i] + "\n";
+  ASSERT_NE(frames_text.find("\"moves\""), std::string::npos);
+  ServerProcess server({"--occlusion-buffer", "128", "--scene",
+                        "paper_file=" + examples + "/scene.json"});
+  const std::string frames = server.path("frames.jsonl");
+  spit(frames, frames_text);
+
+  const auto replay = [&](const std::vector<std::string>& extra, const std::string& out) {
+    std::vector<std::string> argv = {VOXVIS_CLI, "replay", "--scene", examples + "/scene.json",
+                                     "--frames", frames, "--out", out, "-q"};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    const ProcessResult r = run_program(argv, server.dir());
+    EXPECT_EQ(r.status, 0) << r.err;
+    return slurp(out);
+  };
+  const std::string with_buffer = replay({"--occlusion-buffer", "128"}, server.path("on.jsonl"));
+  const std::string without = replay({}, server.path("off.jsonl"));
+  const std::vector<std::string> on_lines = lines_of(with_buffer), off_lines = lines_of(without);
+  ASSERT_EQ(on_lines.size(), 40u);
+  ASSERT_EQ(off_lines.size(), 40u);
+  // The buffer is on in replay's answers, and it changes them: the frames
+  // whose PVS differ with and without it.
+  int differing = 0;
+  for (std::size_t i = 0; i < on_lines.size(); ++i) {
+    const nlohmann::json on = nlohmann::json::parse(on_lines[i], nullptr, false);
+    const nlohmann::json off = nlohmann::json::parse(off_lines[i], nullptr, false);
+    ASSERT_FALSE(on.is_discarded() || off.is_discarded()) << i;
+    ASSERT_EQ(on.at("stats").value("ob_width", 0), 128) << on_lines[i];
+    ASSERT_FALSE(off.at("stats").contains("ob_width")) << off_lines[i];
+    if (on.at("pvs") != off.at("pvs")) ++differing;
+  }
+  ASSERT_GT(differing, 0) << "the buffer changes no PVS on these frames: the test shows nothing";
+  const std::string expected = without_buffer_counters(with_buffer);
+
+  ASSERT_TRUE(server.start());
+  const std::string json = slurp(examples + "/scene.json");
+  ASSERT_TRUE(server.api().create_scene_json("paper_api", json).ok());
+  ASSERT_TRUE(server.api().create_scene_json("paper_kept", json).ok());
+  const auto view = [&](const std::string& id) {
+    const std::string out = server.path("view_" + id + ".jsonl");
+    const ProcessResult r = run_program({VOXVIS_CLI, "view", "--server", server.address(), "--scene",
+                                         id, "--frames", frames, "--out", out, "-q"},
+                                        server.dir());
+    EXPECT_EQ(r.status, 0) << r.err;
+    return slurp(out);
+  };
+  expect_same_output(expected, view("paper_file"), "--scene, voxvis view");
+  expect_same_output(expected, view("paper_api"), "CreateScene, voxvis view");
+  ASSERT_EQ(server.terminate(), 0);
+
+  // paper_kept was never moved: it comes back from the data directory as
+  // it was created, and the buffer applies to it as well.
+  ASSERT_TRUE(server.restart());
+  std::vector<std::string> ids;
+  ASSERT_TRUE(server.api().list_scenes(&ids).ok());
+  ASSERT_EQ(ids, (std::vector<std::string>{"paper_api", "paper_file", "paper_kept"}));
+  EXPECT_NE(server.log().find("loaded scene 'paper_kept' from the data directory"),
+            std::string::npos)
+      << server.log();
+  expect_same_output(expected, view("paper_kept"), "data directory, voxvis view");
+  EXPECT_EQ(server.terminate(), 0);
+}
+
+// A bad width is a start error naming the flag (exit status 2), found before
+// the data directory is read: its scenes are neither loaded nor quarantined,
+// and nothing listens.
+TEST(ServerCli, BadOcclusionBufferIsAStartError) {
+  ServerProcess server;
+  ASSERT_TRUE(server.start());
+  ASSERT_TRUE(server.api().create_scene_json("wall", wall_scene_json()).ok());
+  ASSERT_EQ(server.terminate(), 0);
+
+  for (const std::string bad : {"-1", "1", "7", "4097", "100000", "abc", "12.5", "64px"}) {
+    SCOPED_TRACE("--occlusion-buffer " + bad);
+    server.extra_args() = {"--occlusion-buffer", bad};
+    const std::size_t log_before = server.log().size();
+    EXPECT_FALSE(server.start());
+    EXPECT_EQ(server.wait_exit(Seconds(10)), 2);
+    const std::string log = server.log().substr(log_before);
+    EXPECT_NE(log.find("error"), std::string::npos) << log;
+    EXPECT_NE(log.find("--occlusion-buffer"), std::string::npos) << log;
+    EXPECT_EQ(log.find("listening"), std::string::npos) << log;
+    EXPECT_EQ(log.find("quarantine"), std::string::npos) << log;
+    EXPECT_FALSE(fs::exists(server.path("port")));
+  }
+  // Out-of-range values are told the limits.
+  const std::size_t log_before = server.log().size();
+  server.extra_args() = {"--occlusion-buffer", "4097"};
+  EXPECT_FALSE(server.start());
+  EXPECT_NE(server.log().substr(log_before).find("from 8 to 4096, got 4097"), std::string::npos)
+      << server.log();
+
+  // The limits themselves are accepted, and the scene is still there.
+  for (const std::string good : {"8", "4096", "0"}) {
+    SCOPED_TRACE("--occlusion-buffer " + good);
+    server.extra_args() = {"--occlusion-buffer", good};
+    ASSERT_TRUE(server.start());
+    std::vector<std::string> ids;
+    ASSERT_TRUE(server.api().list_scenes(&ids).ok());
+    EXPECT_EQ(ids, (std::vector<std::string>{"wall"}));
+    v1::GetPvsResponse pvs;
+    ASSERT_TRUE(server.api().get_pvs("wall", 0.0, wall_camera(), &pvs).ok());
+    EXPECT_EQ(ids_of(pvs.pvs()), (std::vector<ObjectId>{1, 3}));
+    EXPECT_EQ(server.terminate(), 0);
+  }
+}
+
 TEST(ServerCli, LoadgenManyViewersOfOneScene) {
   const std::string examples = std::string(VOXVIS_SOURCE_DIR) + "/examples/paper";
   ServerProcess server;
