@@ -495,22 +495,24 @@ double Scene::Impl::tbv_box(std::uint32_t slot, Vec3* lo_out, Vec3* hi_out, bool
   const Vec3 lo = o.box_lo(), hi = o.box_hi();
   *lo_out = glm::min(lo, glm::max(lo - grow, spec.bounds_min));
   *hi_out = glm::max(hi, glm::min(hi + grow, spec.bounds_max));
-  // Nor into space a viewer sees now: a TBV there would be revealed at once,
-  // waking an object that cannot be seen where it is. The growth (and with it
-  // the period) is cut to what keeps clear of the seen bricks, so the TBV
-  // still holds every position the object can reach before it expires. When
-  // that leaves less than a quarter of the first TBV's growth (the object is
-  // next to seen space anyway), the TBV is left as it was.
+  // Nor into space a viewer saw recently: a TBV there would be revealed at
+  // once, waking an object that cannot be seen where it is. The growth (and
+  // with it the period) is cut to what keeps clear of the seen voxels, so the
+  // TBV still holds every position the object can reach before it expires.
+  // When that leaves less than a quarter of the first TBV's growth (the
+  // object is next to seen space anyway) or a period under the engine's
+  // shortest, the TBV is left as it was.
   const double vmin = std::fmin(spec.voxel_size.x, std::fmin(spec.voxel_size.y, spec.voxel_size.z));
   double room_brick = 0.0;
   const double floor = 0.25 * options.tbv_voxels * vmin;
   double room = unseen_growth(o, *lo_out, *hi_out, &room_brick);
   if (room_brick >= floor) room = room_brick;
-  if (room < grow && room >= floor) {
+  const double cut_period = grow > 0.0 ? period * (room / grow) : 0.0;
+  if (room < grow && room >= floor && cut_period >= 1e-3) {
     if (cut) *cut = true;
     *lo_out = glm::min(lo, glm::max(lo - room, spec.bounds_min));
     *hi_out = glm::max(hi, glm::min(hi + room, spec.bounds_max));
-    return std::fmax(period * (room / grow), 1e-3);
+    return cut_period;
   }
   return period;
 }
