@@ -609,7 +609,6 @@ void Scene::Impl::mark_seen(Scratch::Impl& w, double t) {
   w.seen_list.clear();
 }
 
-
 void Scene::Impl::make_tbv(std::uint32_t slot, double now) {
   Obj& o = objs[slot];
   const double period = tbv_box(slot, &o.tbv_lo, &o.tbv_hi);

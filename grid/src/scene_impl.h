@@ -237,10 +237,10 @@ struct Scene::Impl {
   double tbv_box(std::uint32_t slot, Vec3* lo, Vec3* hi, bool* cut = nullptr) const;
   void drop_tbv(std::uint32_t slot);
   /// How far (world units, on every side) the box of object `o` may grow
-  /// towards the TBV box [lo, hi] and touch no brick a viewer currently sees;
-  /// infinity when nothing is in the way (docs/design.md, "Temporal bounding
-  /// volumes"). `room_brick`: the same, keeping out of every brick that holds
-  /// a seen voxel.
+  /// towards the TBV box [lo, hi] and stay half a voxel clear of every voxel
+  /// a viewer saw within tbv_seen_memory; infinity when nothing is in the way
+  /// (docs/design.md, "Temporal bounding volumes"). `room_brick`: the same,
+  /// keeping out of every brick that holds such a voxel.
   double unseen_growth(const detail::Obj& o, const Vec3& lo, const Vec3& hi, double* room_brick) const;
   /// Records the voxels a frame at time t saw, and empties w's record.
   void mark_seen(Scratch::Impl& w, double t);

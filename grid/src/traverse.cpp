@@ -358,8 +358,8 @@ void Traversal::collect(std::int64_t idx, const std::int64_t v[3], std::uint8_t 
   const auto bi = static_cast<std::size_t>(
       (gx >> detail::kBrickShift) +
       s_.bricks_res.x * ((gy >> detail::kBrickShift) + std::int64_t{s_.bricks_res.y} * (gz >> detail::kBrickShift)));
-  // The voxel is in view and not proven hidden: this viewer sees its brick,
-  // which TBVs made after this frame keep clear of.
+  // The voxel is in view and not proven hidden: this frame sees it, and TBVs
+  // made after the frame keep clear of it (Scene::Impl::mark_seen).
   static_assert(detail::kBrickShift == 2, "a brick's voxels are the 64 bits of a mask");
   std::uint64_t& seen = w_.seen_vox[bi];
   if (seen == 0) w_.seen_list.push_back(static_cast<std::uint32_t>(bi));
