@@ -140,9 +140,13 @@ Status validate_desc(const SceneDesc& d, const SceneOptions& opt) {
 Scratch::Scratch() : impl_(std::make_unique<Impl>()) {}
 Scratch::~Scratch() = default;
 
-void Scratch::Impl::begin(std::size_t voxels, std::size_t objects, std::size_t boxes) {
+void Scratch::Impl::begin(std::size_t voxels, std::size_t objects, std::size_t boxes, std::size_t bricks) {
   pvs.clear();
   deferred.clear();
+  // A frame that ended early (an error) may have left its seen record.
+  for (std::uint32_t b : seen_list) seen_vox[b] = 0;
+  seen_list.clear();
+  if (seen_vox.size() < bricks) seen_vox.resize(bricks, 0);
   if (stamp.size() < voxels) stamp.resize(voxels, 0);
   if (obj_mark.size() < objects) obj_mark.resize(objects, 0);
   if (obj_seen.size() < objects) obj_seen.resize(objects, 0);
@@ -526,74 +530,52 @@ double Scene::Impl::unseen_growth(const Obj& o, const Vec3& lo, const Vec3& hi, 
   const VoxBox want = touch_range(lo, hi, s);
   if (own.empty() || want.empty()) return inf;  // Beyond the grid: no bricks to keep clear of.
   // Grow a brick range from the object's own bricks towards the wanted ones,
-  // a layer at a time on each side, while the new layer holds no voxel seen
-  // recently; a face is held at the first layer that does.
-  glm::ivec3 r[2] = {own.lo >> detail::kBrickShift, own.hi >> detail::kBrickShift};
-  const glm::ivec3 t[2] = {want.lo >> detail::kBrickShift, want.hi >> detail::kBrickShift};
-  // The seen voxels of a layer, as one mask of a brick's 64 voxels (bit
-  // x + 4y + 16z) OR-ed over the layer's bricks: 0 when the layer is clear.
-  auto layer_seen = [&](int a, int c) {
-    glm::ivec3 l = r[0], h = r[1];
-    l[a] = h[a] = c;
-    std::uint64_t m = 0;
-    for (int z = l.z; z <= h.z; ++z)
-      for (int y = l.y; y <= h.y; ++y)
-        for (int x = l.x; x <= h.x; ++x) {
-          const auto b = static_cast<std::size_t>(x + std::int64_t{bricks_res.x} * (y + std::int64_t{bricks_res.y} * z));
-          if (seen_recently(b)) m |= seen_mask[b];
-        }
-    return m;
-  };
-  // Voxels of a brick whose coordinate on axis a is k.
+  // every side one layer a round (the uniform growth a TBV has), until a
+  // round meets a layer holding a voxel seen recently. Such a side stops
+  // half a voxel short of the nearest seen voxel in the layer, so that the
+  // rounding allowance of touch_range cannot reach it; `room_brick` stops it
+  // short of the whole layer instead, since a TBV that reaches into a brick
+  // with seen voxels costs every visit of that brick's voxels.
+  const int bs = 1 << detail::kBrickShift;
+  VoxBox r{own.lo >> detail::kBrickShift, own.hi >> detail::kBrickShift};
+  const VoxBox t{want.lo >> detail::kBrickShift, want.hi >> detail::kBrickShift};
+  // Voxels of a brick (bit x + 4y + 16z) whose coordinate on axis a is k.
   auto plane = [](int a, int k) {
     static constexpr std::uint64_t kPlane0[3] = {0x1111111111111111ull, 0x000F000F000F000Full, 0xFFFFull};
     return kPlane0[a] << (k << (2 * a));
   };
-  // The held faces, grid coordinates: half a voxel short of the nearest
-  // seen voxel, so that the rounding allowance of touch_range cannot reach it.
-  const int bs = 1 << detail::kBrickShift;
-  double face[2][3];
-  bool held[2][3] = {};
-  for (bool grew = true; grew;) {
+  double room = inf;
+  for (bool grew = true; grew && room == inf;) {
     grew = false;
     for (int a = 0; a < 3; ++a)
       for (int side = 0; side < 2; ++side) {
-        const int step = side ? 1 : -1;
-        if (held[side][a] || r[side][a] == t[side][a]) continue;
-        const int c = r[side][a] + step;
-        const std::uint64_t m = layer_seen(a, c);
+        const int c = side ? r.hi[a] + 1 : r.lo[a] - 1;
+        if (side ? c > t.hi[a] : c < t.lo[a]) continue;  // Grown as far as wanted.
+        // The layer's recently seen voxels, OR-ed over its bricks.
+        VoxBox l = r;
+        l.lo[a] = l.hi[a] = c;
+        std::uint64_t m = 0;
+        for (int z = l.lo.z; z <= l.hi.z; ++z)
+          for (int y = l.lo.y; y <= l.hi.y; ++y)
+            for (int x = l.lo.x; x <= l.hi.x; ++x) {
+              const auto b = static_cast<std::size_t>(x + std::int64_t{bricks_res.x} * (y + std::int64_t{bricks_res.y} * z));
+              if (seen_recently(b)) m |= seen_mask[b];
+            }
         if (m == 0) {
-          r[side][a] = c;
+          (side ? r.hi[a] : r.lo[a]) = c;
           grew = true;
           continue;
         }
-        held[side][a] = true;
-        if (side == 0) {
-          int k = bs - 1;
-          while ((m & plane(a, k)) == 0) --k;
-          face[0][a] = c * bs + k + 1.5;
-        } else {
-          int k = 0;
-          while ((m & plane(a, k)) == 0) ++k;
-          face[1][a] = c * bs + k - 0.5;
-        }
+        int k = side ? 0 : bs - 1;
+        while ((m & plane(a, k)) == 0) k += side ? 1 : -1;
+        // Grid coordinates of the side's stop, and of the layer's near face.
+        const double stop = side ? c * bs + k - 0.5 : c * bs + k + 1.5;
+        const double layer = side ? c * bs - 0.5 : (c + 1) * bs + 0.5;
+        const double v = spec.voxel_size[a];
+        const double ob = (side ? o.box_hi()[a] : o.box_lo()[a]) - spec.bounds_min[a];
+        room = std::fmin(room, side ? stop * v - ob : ob - stop * v);
+        *room_brick = std::fmin(*room_brick, side ? layer * v - ob : ob - layer * v);
       }
-  }
-  // The same, held short of the whole layer: a TBV that reaches into a
-  // brick with seen voxels costs every visit of that brick's voxels.
-  double room = inf;
-  *room_brick = inf;
-  for (int a = 0; a < 3; ++a) {
-    const double olo = o.box_lo()[a] - spec.bounds_min[a], ohi = o.box_hi()[a] - spec.bounds_min[a];
-    const double v = spec.voxel_size[a];
-    if (held[0][a]) {
-      room = std::fmin(room, olo - face[0][a] * v);
-      *room_brick = std::fmin(*room_brick, olo - (r[0][a] * bs + 0.5) * v);
-    }
-    if (held[1][a]) {
-      room = std::fmin(room, face[1][a] * v - ohi);
-      *room_brick = std::fmin(*room_brick, ((r[1][a] + 1) * bs - 0.5) * v - ohi);
-    }
   }
   return room;
 }

@@ -125,9 +125,9 @@ struct Scratch::Impl {
   std::vector<std::uint64_t> seen_vox;
   std::vector<std::uint32_t> seen_list;
 
-  /// Starts a frame for a scene of `voxels` voxels, `objects` slots and
-  /// `boxes` opaque boxes.
-  void begin(std::size_t voxels, std::size_t objects, std::size_t boxes);
+  /// Starts a frame for a scene of `voxels` voxels, `objects` slots,
+  /// `boxes` opaque boxes and `bricks` bricks.
+  void begin(std::size_t voxels, std::size_t objects, std::size_t boxes, std::size_t bricks);
 };
 
 struct Scene::Impl {

@@ -679,11 +679,7 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
   if (Status st = validate_time("t", t); !st) return st;
   const auto start = std::chrono::steady_clock::now();
   Scratch::Impl& w = scratch.impl();
-  w.begin(static_cast<std::size_t>(s.spec.voxel_count()), s.objs.size(), s.opaque_boxes.size());
-  // A frame that ended early (an error) may have left its record behind.
-  for (std::uint32_t b : w.seen_list) w.seen_vox[b] = 0;
-  w.seen_list.clear();
-  if (w.seen_vox.size() < s.bricks.size()) w.seen_vox.resize(s.bricks.size(), 0);
+  w.begin(static_cast<std::size_t>(s.spec.voxel_count()), s.objs.size(), s.opaque_boxes.size(), s.bricks.size());
   const WorldFrustum wf = detail::make_world_frustum(camera);
   FrameStats st;
   std::vector<std::uint32_t> wake;

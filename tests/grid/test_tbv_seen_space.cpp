@@ -102,6 +102,24 @@ TEST(TbvSeenSpace, HiddenObjectsAroundAClosedRoomAreNeverRevealed) {
   EXPECT_GT(expired, 400u);  // Every TBV was renewed at least once on average.
 }
 
+TEST(TbvSeenSpace, WithoutMemoryTheTurningViewerRevealsTbvs) {
+  // The same room with tbv_seen_memory 0: only the last frame's view is kept
+  // clear, so TBVs grow into the part of the room behind the turning eye and
+  // are revealed when it comes round. The memory is what the test above
+  // relies on.
+  SceneOptions options;
+  options.tbv_seen_memory = 0.0;
+  EngineHarness h(room_with_hidden(400, 3.0, 77), options, "closed room, no memory");
+  ASSERT_TRUE(h.status().ok) << h.status().str();
+  double t = 0.0;
+  std::uint32_t revealed = 0;
+  for (int f = 0; f < 150; ++f, t += kDt) {
+    ASSERT_EQ(h.frame(turning_camera(f), t), "") << "frame " << f;
+    if (f >= 30) revealed += h.last().stats.tbvs_revealed;
+  }
+  EXPECT_GT(revealed, 0u);
+}
+
 TEST(TbvSeenSpace, AnObjectWalkingIntoTheRoomIsRevealedAndSeen) {
   // Objects walk at their speed limit straight into the room (through its
   // wall). Their moves leave TBVs that keep clear of the room, so each is
