@@ -123,9 +123,9 @@ TEST(OpaqueBoxes, CoverEverySetVoxelWithBoxesOfSetVoxelsOnly) {
 }
 
 TEST(OpaqueBoxes, LowGroundReachesUnderHigherGround) {
-  // Two columns of ground, 2 and 4 voxels high: the box grown from the low
-  // side's top voxel also spans the high side's lower voxels, so the
-  // concave edge between them lies inside one box.
+  // Two columns of ground, 2 and 4 voxels high: the first box (grown from
+  // the low side's bottom voxel) also spans the high side's lower voxels, so
+  // the concave edge between them lies inside one box.
   const glm::ivec3 res(2, 4, 1);
   std::vector<std::uint8_t> flags(8, 0);
   for (int y = 0; y < 4; ++y) flags[static_cast<std::size_t>(1 + 2 * y)] = 1;  // x = 1: 4 high.
