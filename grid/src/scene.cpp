@@ -281,6 +281,29 @@ void Scene::Impl::inner_box(const Obj& o, const Vec3& c, Vec3* lo, Vec3* hi) con
   }
 }
 
+bool Scene::Impl::own_voxels(const Obj& o, VoxBox* out) const {
+  const Vec3 c = o.center;
+  const Vec3 half = o.shape == Shape::Sphere ? Vec3(o.radius) : o.half;
+  const Vec3 sg = slop(max_abs(c) + o.radius + max_abs(o.half)) * inv_vs;
+  for (int a = 0; a < 3; ++a) {
+    double g[2];
+    for (int side = 0; side < 2; ++side) {
+      double w = 0.0;
+      const bool exact = exact_sum(c[a], side ? half[a] : -half[a], &w);
+      const double q = (w - spec.bounds_min[a]) * inv_vs[a];
+      const bool exact_g = exact && on_boundary(w, spec.bounds_min[a], q, spec.voxel_size[a]);
+      g[side] = exact_g ? q : (side ? q + sg[a] : q - sg[a]);
+    }
+    // Voxel i is [i, i+1]; the closed range [g0, g1] lies in voxels
+    // floor(g0) .. ceil(g1) - 1 (one voxel when it is a single point).
+    const double i0 = std::floor(g[0]), i1 = std::fmax(i0, std::ceil(g[1]) - 1.0);
+    if (!(i0 >= 0.0) || !(i1 <= res[a] - 1.0)) return false;
+    out->lo[a] = static_cast<int>(i0);
+    out->hi[a] = static_cast<int>(i1);
+  }
+  return true;
+}
+
 bool Scene::Impl::union_covers(const std::uint32_t* slots, std::size_t n, int x, int y, int z) const {
   const Vec3 v0{static_cast<double>(x), static_cast<double>(y), static_cast<double>(z)};
   const Vec3 v1 = v0 + 1.0;

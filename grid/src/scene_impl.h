@@ -208,6 +208,10 @@ struct Scene::Impl {
   /// faces where the mapping is exact, shrunk by the rounding allowance
   /// elsewhere; a sphere gives its inscribed cube. May be empty (lo > hi).
   void inner_box(const detail::Obj& o, const Vec3& c, Vec3* lo, Vec3* hi) const;
+  /// The voxels whose closed cells together hold the whole closed box of a
+  /// static object: exact faces where the mapping is exact, grown by the
+  /// rounding allowance elsewhere. False when it reaches beyond the grid.
+  bool own_voxels(const detail::Obj& o, detail::VoxBox* out) const;
   /// Whether the objects in `slots` (at their discretized or static centres)
   /// together cover voxel (x, y, z): one sphere contains it, or the union of
   /// their inner boxes covers the closed unit cube (docs/design.md, "Opacity").

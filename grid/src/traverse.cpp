@@ -122,6 +122,10 @@ class Traversal {
     seen = w_.frame;
     const Obj& o = s_.objs[slot];
     if (!wf_.may_intersect_box(o.box_lo(), o.box_hi())) return;
+    if (!o.dynamic && own_voxels_hidden(o)) {
+      ++st_.front_objects_culled;
+      return;
+    }
     detail::OcclusionBuffer& ob = w_.ob;
     if (ob.on()) {
       if (ob_hides_object(ob, o)) {
@@ -162,6 +166,68 @@ class Traversal {
   }
   std::int64_t gindex(const std::int64_t v[3]) const {
     return (E_[0] + v[0]) + stride_[1] * (E_[1] + v[1]) + stride_[2] * (E_[2] + v[2]);
+  }
+  /// Whether the static opaque voxels around local voxel v on the eye's side
+  /// hide it (idx: its grid index). Every ray from the eye first meets the
+  /// closed voxel at a point q; the ray's points just before q lie in the
+  /// neighbours v + delta with each delta[a] either 0 or the step towards
+  /// the eye along a (0 only, where the eye lies in v's slab along a). When
+  /// those are all static opaque and wholly beyond the near plane, the ray is
+  /// inside an object strictly before q, so no point of v is a first hit
+  /// (not even a tie). This reaches what the shells' exit rule cannot: a
+  /// voxel just under a surface seen at a grazing angle, whose rays come
+  /// through neighbours of its own shell.
+  bool front_blocked(const std::int64_t v[3], std::int64_t idx) const {
+    int step[3];
+    for (int a = 0; a < 3; ++a) {
+      if (v[a] != 0) {
+        // Towards the eye. A rounding that puts the true eye in v's slab
+        // only asks for more neighbours than needed.
+        step[a] = v[a] > 0 ? -1 : 1;
+      } else if (lf_.e[a] >= tol_ && lf_.e[a] <= 1.0 - tol_) {
+        step[a] = 0;  // The eye lies in v's slab along a.
+      } else {
+        return false;  // Too near a face of its voxel to tell.
+      }
+    }
+    if (step[0] == 0 && step[1] == 0 && step[2] == 0) return false;  // The eye's voxel.
+    const std::uint8_t* flags = s_.vflags.data();
+    for (int k = 1; k < 8; ++k) {
+      std::int64_t u[3];
+      std::int64_t ui = idx;
+      bool skip = false;
+      for (int a = 0; a < 3; ++a) {
+        const int da = (k >> a) & 1 ? step[a] : 0;
+        if ((k >> a) & 1 && step[a] == 0) skip = true;
+        u[a] = v[a] + da;
+        ui += da * stride_[a];
+      }
+      if (skip) continue;
+      if (!in_grid(u) || !(flags[static_cast<std::size_t>(ui)] & Scene::Impl::kStaticOpaque)) return false;
+      const Vec3 lo{static_cast<double>(u[0]), static_cast<double>(u[1]), static_cast<double>(u[2])};
+      if (!(lf_.depth_min(lo) >= lf_.near + depth_tol_)) return false;
+    }
+    return true;
+  }
+  /// Whether every voxel holding static object o is hidden by its front
+  /// neighbours (front_blocked): then no point of o is a first hit, though
+  /// it touches voxels in view (a block just under the ground touches the
+  /// air above it at its edges). Small objects only: the test is per voxel.
+  bool own_voxels_hidden(const Obj& o) const {
+    detail::VoxBox vb;
+    if (!s_.own_voxels(o, &vb)) return false;
+    const glm::ivec3 n = vb.hi - vb.lo + 1;
+    if (n.x * n.y * n.z > 8) return false;
+    std::int64_t v[3];
+    for (int z = vb.lo.z; z <= vb.hi.z; ++z)
+      for (int y = vb.lo.y; y <= vb.hi.y; ++y)
+        for (int x = vb.lo.x; x <= vb.hi.x; ++x) {
+          v[0] = x - E_[0];
+          v[1] = y - E_[1];
+          v[2] = z - E_[2];
+          if (!front_blocked(v, gindex(v))) return false;
+        }
+    return true;
   }
   /// Status of a voxel of the previous shell: true when it blocks.
   bool blocks(const std::int64_t u[3]) const {
@@ -482,6 +548,14 @@ void Traversal::visit_row(int face, int a, int b, int d, std::int64_t la, std::i
       stamp = static_cast<std::uint8_t>(tag_ | kBlocked);
       continue;
     }
+    const std::uint8_t flags = flags_arr[static_cast<std::size_t>(idx)];
+    // Opaque voxels only: those are the ones under a surface, and the test
+    // costs too much for every empty voxel in view.
+    if ((flags & Scene::Impl::kStaticOpaque) && front_blocked(v, idx)) {
+      stamp = static_cast<std::uint8_t>(tag_ | kBlocked);
+      ++st_.front_voxels_culled;
+      continue;
+    }
     // The occlusion buffer only adds occlusion: a voxel it proves hidden
     // reads as occluded, exactly as one the shells prove hidden.
     if (ob_on_ && ob_hides_voxel(v)) {
@@ -489,7 +563,6 @@ void Traversal::visit_row(int face, int a, int b, int d, std::int64_t la, std::i
       ++st_.ob_voxels_culled;
       continue;
     }
-    const std::uint8_t flags = flags_arr[static_cast<std::size_t>(idx)];
     bool blocking = false;
     if (flags & (Scene::Impl::kStaticOpaque | Scene::Impl::kDynOpaque)) {
       // An opaque voxel occludes only when wholly beyond the near plane:

@@ -89,6 +89,10 @@ struct FrameStats {
   std::uint32_t outside_tested = 0;   ///< Objects and TBVs beyond the grid tested against the frustum.
   std::uint32_t pvs_size = 0;
   bool early_exit = false;            ///< Traversal stopped at a fully occluded shell.
+  /// Voxels hidden by the static opaque voxels beside them on the eye's side.
+  std::uint64_t front_voxels_culled = 0;
+  /// Static objects in voxels so hidden, though they touch voxels in view.
+  std::uint32_t front_objects_culled = 0;
   std::uint32_t ob_width = 0;         ///< Occlusion buffer width this frame; 0: off.
   std::uint64_t ob_voxels_culled = 0; ///< Voxels the occlusion buffer proved hidden.
   std::uint32_t ob_objects_culled = 0;///< Objects and TBVs it proved hidden.
