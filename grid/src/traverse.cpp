@@ -292,8 +292,33 @@ Range Traversal::required(int b, std::int64_t vb, double t0, double t1, std::int
   Range r;
   if (whole) *whole = lo >= -kd - tol_ && hi <= kd + 1.0 + tol_;
   if (hi < -kd - tol_ || lo > kd + 1.0 + tol_) return r;  // Leaves through another face.
-  r.lo = std::max(-k, static_cast<std::int64_t>(std::floor(lo - tol_)));
-  r.hi = std::min(k, static_cast<std::int64_t>(std::floor(hi + tol_)));
+  if (t0 == 1.0 || t1 == 1.0) {
+    // v's face towards the eye lies on C_k's boundary (k is the previous
+    // shell): those points exit exactly where they are, q = p, with q_b in
+    // [vb, vb+1] exactly, and no rounding. What must block is the voxel
+    // holding the segment's points just before q, on the eye's side of q
+    // along b: for q_b = vb that is vb-1 when the eye lies below vb and vb
+    // when above; for q_b = vb+1, vb when the eye lies below vb+1 and vb+1
+    // when above; both voxels when the eye is (within the rounding allowance)
+    // on the plane. So the near face needs {vb-1, vb} with the eye below v's
+    // slab, {vb, vb+1} above it and only vb within it. Counting both
+    // neighbours always (as the rounded range below would) erodes every
+    // shadow by a voxel a shell on each side. The other face's exits lie
+    // strictly inside (t < 1) and keep the rounded range.
+    const double t = t0 == 1.0 ? t1 : t0;
+    const double a0 = eb + p0 * t, a1 = eb + p1 * t;
+    std::int64_t lo_i = static_cast<std::int64_t>(std::floor(std::fmin(a0, a1) - tol_));
+    std::int64_t hi_i = static_cast<std::int64_t>(std::floor(std::fmax(a0, a1) + tol_));
+    const std::int64_t n_lo = p0 < -tol_ ? vb : vb - 1;
+    const std::int64_t n_hi = p1 > tol_ ? vb : vb + 1;
+    lo_i = std::min(lo_i, n_lo);
+    hi_i = std::max(hi_i, n_hi);
+    r.lo = std::max(-k, lo_i);
+    r.hi = std::min(k, hi_i);
+  } else {
+    r.lo = std::max(-k, static_cast<std::int64_t>(std::floor(lo - tol_)));
+    r.hi = std::min(k, static_cast<std::int64_t>(std::floor(hi + tol_)));
+  }
   if (eye_inside_) {
     // Eye and v are in the grid box, so is the segment: clamp to the grid.
     r.lo = std::max(r.lo, glo_[b]);
@@ -540,10 +565,10 @@ void Traversal::visit_row(int face, int a, int b, int d, std::int64_t la, std::i
     std::uint8_t& stamp = stamps[static_cast<std::size_t>(idx)];
     if ((stamp & ~3u) == tag_) continue;  // Reached through another face already.
     ++st_.voxels_visited;
-    // Testing only the previous shell erodes a shadow by about a voxel per
-    // shell, and the losses add up. The half-distance shell keeps the
-    // occluders' own voxels in view for twice as long, so its test stops the
-    // accumulation (docs/design.md, "Which shells").
+    // Exits rounded at voxel boundaries can still erode a shadow at the
+    // previous shell where rays cross them at an angle; the half-distance
+    // shell keeps the occluders' own voxels in view for twice as long, so
+    // its test stops the losses adding up (docs/design.md, "Which shells").
     if (m >= 2 && (row_occluded(prev_, pe, vb, b, v) || (m >= 4 && row_occluded(half_, he, vb, b, v)))) {
       stamp = static_cast<std::uint8_t>(tag_ | kBlocked);
       continue;
