@@ -705,6 +705,28 @@ void Scene::Impl::reveal(std::uint32_t slot) {
   }
 }
 
+void Scene::Impl::apply_queue(FrameStats& st, bool tbvs) {
+  for (std::uint32_t slot : queued_reveals) {
+    Obj& o = objs[slot];
+    o.reveal_queued = false;
+    if (o.under_tbv) reveal(slot);  // Not when a move revealed it meanwhile.
+  }
+  queued_reveals.clear();
+  if (!tbvs) return;
+  // A dynamic object no viewer's last PVS holds is hidden from all of them
+  // and gets a TBV; claims may have come back since it was queued.
+  for (std::uint32_t slot : unclaimed) {
+    Obj& o = objs[slot];
+    o.pending_unclaimed = false;
+    if (o.claims == 0 && !o.under_tbv) {
+      undiscretize(slot);
+      make_tbv(slot, time);
+      ++st.tbvs_created;
+    }
+  }
+  unclaimed.clear();
+}
+
 // ---------------------------------------------------------------------------
 // Scene
 
@@ -845,12 +867,12 @@ const GridSpec& Scene::grid() const { return impl_->spec; }
 std::size_t Scene::object_count() const { return impl_->objs.size(); }
 std::size_t Scene::dynamic_count() const { return impl_->dynamic_count; }
 double Scene::time() const {
-  std::shared_lock<std::shared_mutex> lock(impl_->mu);
+  std::lock_guard<std::mutex> book(impl_->book);
   return impl_->time;
 }
 
 ViewerId Scene::add_viewer() {
-  std::unique_lock<std::shared_mutex> lock(impl_->mu);
+  std::lock_guard<std::mutex> book(impl_->book);
   const ViewerId id = impl_->next_viewer++;
   impl_->viewers.emplace(id, detail::ViewerState{});
   return id;
@@ -858,7 +880,7 @@ ViewerId Scene::add_viewer() {
 
 void Scene::remove_viewer(ViewerId viewer) {
   Impl& s = *impl_;
-  std::unique_lock<std::shared_mutex> lock(s.mu);
+  std::lock_guard<std::mutex> book(s.book);  // Claims only: the grid is untouched.
   auto it = s.viewers.find(viewer);
   if (it == s.viewers.end()) return;
   for (std::uint32_t slot : it->second.last_pvs) {
@@ -876,6 +898,7 @@ Status Scene::apply_moves(double t, std::span<const Move> moves, MoveReport* rep
                           Clock clock) {
   Impl& s = *impl_;
   std::unique_lock<std::shared_mutex> lock(s.mu);
+  std::lock_guard<std::mutex> book(s.book);
   if (Status st = validate_time("t", t); !st) return st;
   if (clock == Clock::Latest && s.time_set) t = std::fmax(t, s.time);
   if (s.time_set && t < s.time)
@@ -893,6 +916,7 @@ Status Scene::apply_moves(double t, std::span<const Move> moves, MoveReport* rep
   }
   s.time = t;
   s.time_set = true;
+  s.apply_queue(s.pending, s.claims_made);  // Frames' queued reveals and TBVs first.
   if (report) {
     *report = MoveReport{};
     report->t = t;
@@ -937,12 +961,13 @@ Status Scene::apply_moves(double t, std::span<const Move> moves, MoveReport* rep
 }
 
 std::uint64_t Scene::wake_epoch() const {
-  std::shared_lock<std::shared_mutex> lock(impl_->mu);
+  std::lock_guard<std::mutex> book(impl_->book);
   return impl_->wake_epoch;
 }
 
 std::vector<Move> Scene::dynamic_centers(double* time) const {
   std::shared_lock<std::shared_mutex> lock(impl_->mu);
+  std::lock_guard<std::mutex> book(impl_->book);
   if (time) *time = impl_->time;
   std::vector<Move> out;
   out.reserve(impl_->dynamic_count);
@@ -954,9 +979,11 @@ std::vector<Move> Scene::dynamic_centers(double* time) const {
 
 std::vector<ObjectId> Scene::wake_set() const {
   std::shared_lock<std::shared_mutex> lock(impl_->mu);
+  std::lock_guard<std::mutex> book(impl_->book);
   std::vector<ObjectId> ids;
+  // A queued reveal is a wake already reported by its frame.
   for (const Obj& o : impl_->objs)
-    if (o.dynamic && !o.under_tbv) ids.push_back(o.id);
+    if (o.dynamic && (!o.under_tbv || o.reveal_queued)) ids.push_back(o.id);
   std::sort(ids.begin(), ids.end());
   return ids;
 }

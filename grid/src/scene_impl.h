@@ -15,6 +15,7 @@
 // tested against the frustum each frame, since no voxel stands for them.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <limits>
 #include <queue>
@@ -52,6 +53,7 @@ struct Obj {
   bool under_tbv = false;
   std::uint32_t claims = 0;   ///< Viewers whose last PVS holds it.
   bool pending_unclaimed = false;
+  bool reveal_queued = false; ///< In Scene::Impl::queued_reveals.
   Vec3 disc_center{0.0};      ///< Centre it is discretized at (when !under_tbv).
   std::uint32_t disc_gen = 0; ///< Bumped when the discretization is removed.
   std::int32_t outside_pos = -1;  ///< Index in outside_objs_, or -1.
@@ -131,9 +133,18 @@ struct Scratch::Impl {
 };
 
 struct Scene::Impl {
-  /// Frames hold it shared while they traverse and exclusive while they
-  /// change the scene; every other mutation holds it exclusive.
+  /// Two locks, always taken in this order (docs/design.md,
+  /// "Thread-safety"):
+  ///  * `mu` guards the grid: voxels, bricks, discretizations, TBVs and their
+  ///    expiry queue, objects' positions. Frames hold it shared while they
+  ///    traverse; it is held exclusive (with `book` too) only to change them:
+  ///    moves, expired TBVs, and the queued reveals and new TBVs.
+  ///  * `book` guards the bookkeeping: the clock, viewers and their claims,
+  ///    the seen record, the queues below, counters between frames and the
+  ///    wake epoch. A frame takes it briefly, so frames of different viewers
+  ///    do not wait for each other's traversals.
   mutable std::shared_mutex mu;
+  mutable std::mutex book;
 
   GridSpec spec;
   SceneOptions options;
@@ -176,6 +187,16 @@ struct Scene::Impl {
       expiry;
   std::uint32_t tbv_count = 0;
   std::vector<std::uint32_t> unclaimed;  ///< Slots that may need a TBV.
+  /// TBVs frames found not occluded, to be revealed by the next holder of
+  /// `mu` exclusive; until then they keep bounding their objects.
+  std::vector<std::uint32_t> queued_reveals;
+  /// A frame has made its claims: from then on a frame may make the TBVs of
+  /// unclaimed objects before its traversal (before, every dynamic object is
+  /// unclaimed and would be put under a TBV only to be revealed).
+  bool claims_made = false;
+  /// Frames of this scene running now (Scene::frame renews TBVs ahead of
+  /// expiry only when it is not alone).
+  std::atomic<int> frames_in_flight{0};
 
   // Viewers.
   std::unordered_map<ViewerId, detail::ViewerState> viewers;
@@ -252,6 +273,12 @@ struct Scene::Impl {
     return time - seen_at[brick] <= options.tbv_seen_memory;
   }
   void reveal(std::uint32_t slot);
+  /// Whether apply_queue(st, tbvs) has work. Needs `book`.
+  bool queued(bool tbvs) const { return !queued_reveals.empty() || (tbvs && !unclaimed.empty()); }
+  /// Reveals the queued TBVs and, with `tbvs`, gives a TBV to every
+  /// unclaimed dynamic object (counted in st.tbvs_created), at the scene's
+  /// time. Needs `mu` exclusive and `book`.
+  void apply_queue(FrameStats& st, bool tbvs = true);
   void list_add(std::vector<std::uint32_t>& list, std::int32_t& pos, std::uint32_t slot);
   void list_remove(std::vector<std::uint32_t>& list, std::int32_t& pos, bool tbv);
 

@@ -20,6 +20,7 @@
 // shell k-1 was near it) reads as blocking. Voxels beyond the grid are empty
 // space: they never block.
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -42,6 +43,9 @@ namespace {
 
 constexpr std::uint32_t kLive = 1;
 constexpr std::uint32_t kBlocked = 2;
+/// While frames of other viewers run, Scene::frame renews TBVs expiring
+/// within this many seconds of the frame along with the expired ones.
+constexpr double kRenewAhead = 0.1;
 constexpr double kUlp = std::numeric_limits<double>::epsilon();
 
 /// Whether the buffer proves an object (at the position the scene holds)
@@ -776,15 +780,23 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
   if (Status st = validate_camera(camera); !st) return st;
   if (Status st = validate_time("t", t); !st) return st;
   const auto start = std::chrono::steady_clock::now();
+  s.frames_in_flight.fetch_add(1, std::memory_order_relaxed);
+  struct InFlight {
+    std::atomic<int>& n;
+    ~InFlight() { n.fetch_sub(1, std::memory_order_relaxed); }
+  } in_flight{s.frames_in_flight};
   Scratch::Impl& w = scratch.impl();
   w.begin(static_cast<std::size_t>(s.spec.voxel_count()), s.objs.size(), s.opaque_boxes.size(), s.bricks.size());
   const WorldFrustum wf = detail::make_world_frustum(camera);
   FrameStats st;
   std::vector<std::uint32_t> wake;
 
-  // Phase 1, exclusive: the clock and expired TBVs.
+  // Phase 1: the clock, under `book`; then, only when there is work for it,
+  // `mu` exclusive for the queue other frames left and for expired TBVs.
+  // A frame with nothing to change does not wait for other traversals.
+  bool change = false;
   {
-    std::unique_lock<std::shared_mutex> lock(s.mu);
+    std::lock_guard<std::mutex> book(s.book);
     if (clock == Clock::Latest && s.time_set) t = std::fmax(t, s.time);
     if (s.time_set && t < s.time) {
       char buf[128];
@@ -799,13 +811,35 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
     st = s.pending;
     s.pending = FrameStats{};
     wake.swap(s.pending_wake);
-
+    // Only an expired TBV makes a frame wait: it no longer bounds its
+    // object. The queue is conservative as it stands (queued TBVs still
+    // bound their objects, unclaimed objects are in the grid where they
+    // are), so it waits for a free moment (phase 4) or the next change.
+    // The expiry queue changes only under `mu` exclusive and `book`, and a
+    // TBV made after this point expires after s.time >= t, so the check
+    // holds until the traversal.
+    change = !s.expiry.empty() && s.expiry.top().expiry <= t;
+  }
+  if (change) {
+    std::unique_lock<std::shared_mutex> lock(s.mu);
+    std::lock_guard<std::mutex> book(s.book);
+    s.apply_queue(st, s.claims_made);
     // Expired TBVs get a new validity period around the object's current
     // position (paper 4.1, criterion 2); an object that stayed hidden through
-    // a whole period gets twice as long the next time.
-    while (!s.expiry.empty() && s.expiry.top().expiry <= t) {
-      const detail::ExpiryEntry e = s.expiry.top();
+    // a whole period gets twice as long the next time. While other frames
+    // run, those expiring within kRenewAhead are renewed now as well (early
+    // is as sound: the new period starts now), so that frames wait for this
+    // lock about once per kRenewAhead rather than at every frame; a frame
+    // alone renews only what expired, which spreads the work over frames.
+    // Each is renewed once: a new period shorter than kRenewAhead must not
+    // bring it straight back into this loop.
+    const double ahead = s.frames_in_flight.load(std::memory_order_relaxed) > 1 ? kRenewAhead : 0.0;
+    std::vector<detail::ExpiryEntry> due;
+    while (!s.expiry.empty() && s.expiry.top().expiry <= t + ahead) {
+      due.push_back(s.expiry.top());
       s.expiry.pop();
+    }
+    for (const detail::ExpiryEntry& e : due) {
       Obj& o = s.objs[e.slot];
       if (!o.under_tbv || o.tbv_epoch != e.epoch) continue;
       o.tbv_period = std::fmin(2.0 * o.tbv_period, s.max_period(o));
@@ -886,83 +920,94 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
       st.ob_objects_culled += static_cast<std::uint32_t>(before - w.pvs.size());
     }
     w.ob.end();
-  }
 
-  // Phase 3, exclusive: reveals, claims, new TBVs.
-  std::unique_lock<std::shared_mutex> lock(s.mu);
-  auto vit = s.viewers.find(viewer);
-  if (vit == s.viewers.end()) return Status::Error("viewer", "unknown viewer " + std::to_string(viewer));
-  for (std::uint32_t slot : w.deferred) {
-    if (!s.objs[slot].under_tbv) continue;  // Revealed meanwhile (another frame, a move).
-    s.reveal(slot);
-    ++st.tbvs_revealed;
-    wake.push_back(slot);
-  }
-  w.deferred.clear();
-
-  // Claims: a dynamic object is claimed by every viewer whose last PVS holds
-  // it; one no viewer claims is hidden from all of them and gets a TBV.
-  std::vector<std::uint32_t> pvs = w.pvs;
-  std::sort(pvs.begin(), pvs.end());
-  for (std::uint32_t slot : pvs) {
-    // Put under a TBV by another viewer's frame since this one's traversal:
-    // this viewer may see it, so it is revealed again.
-    if (s.objs[slot].under_tbv) {
-      s.reveal(slot);
+    // Phase 3, still shared, under `book`: reveals and new TBVs are queued
+    // for the next holder of `mu` exclusive, claims and the answer are made
+    // here. Nothing changes the grid while this frame holds `mu` shared, so
+    // what the traversal read still holds.
+    std::lock_guard<std::mutex> book(s.book);
+    auto vit = s.viewers.find(viewer);
+    if (vit == s.viewers.end()) return Status::Error("viewer", "unknown viewer " + std::to_string(viewer));
+    // A reveal another frame queued already is that frame's to report.
+    auto queue_reveal = [&](std::uint32_t slot) {
+      Obj& o = s.objs[slot];
+      if (!o.under_tbv || o.reveal_queued) return;
+      o.reveal_queued = true;
+      s.queued_reveals.push_back(slot);
+      ++s.wake_epoch;
       ++st.tbvs_revealed;
       wake.push_back(slot);
-    }
-  }
-  detail::ViewerState& vs = vit->second;
-  s.mark_seen(w, t);
-  {
-    auto a = vs.last_pvs.begin();
-    auto b = pvs.begin();
-    while (a != vs.last_pvs.end() || b != pvs.end()) {
-      if (b == pvs.end() || (a != vs.last_pvs.end() && *a < *b)) {
-        Obj& o = s.objs[*a];
-        if (o.dynamic && --o.claims == 0 && !o.pending_unclaimed) {
-          o.pending_unclaimed = true;
-          s.unclaimed.push_back(*a);
+    };
+    for (std::uint32_t slot : w.deferred) queue_reveal(slot);
+    w.deferred.clear();
+
+    // Claims: a dynamic object is claimed by every viewer whose last PVS
+    // holds it; one no viewer claims is hidden from all of them and is
+    // queued for a TBV (Scene::Impl::apply_queue).
+    std::vector<std::uint32_t> pvs = w.pvs;
+    std::sort(pvs.begin(), pvs.end());
+    // Objects under a TBV put in the PVS (beyond the grid, or the far-eye
+    // fallback): this viewer may see them, so they are revealed.
+    for (std::uint32_t slot : pvs) queue_reveal(slot);
+    detail::ViewerState& vs = vit->second;
+    s.mark_seen(w, t);
+    {
+      auto a = vs.last_pvs.begin();
+      auto b = pvs.begin();
+      while (a != vs.last_pvs.end() || b != pvs.end()) {
+        if (b == pvs.end() || (a != vs.last_pvs.end() && *a < *b)) {
+          Obj& o = s.objs[*a];
+          if (o.dynamic && --o.claims == 0 && !o.pending_unclaimed) {
+            o.pending_unclaimed = true;
+            s.unclaimed.push_back(*a);
+          }
+          ++a;
+        } else if (a == vs.last_pvs.end() || *b < *a) {
+          Obj& o = s.objs[*b];
+          if (o.dynamic) ++o.claims;
+          ++b;
+        } else {
+          ++a, ++b;
         }
-        ++a;
-      } else if (a == vs.last_pvs.end() || *b < *a) {
-        Obj& o = s.objs[*b];
-        if (o.dynamic) ++o.claims;
-        ++b;
-      } else {
-        ++a, ++b;
+      }
+    }
+    s.claims_made = true;
+
+    out->t = t;
+    out->pvs.clear();
+    out->wake.clear();
+    for (std::uint32_t slot : pvs) {
+      out->pvs.push_back(s.objs[slot].id);
+      if (s.objs[slot].dynamic) wake.push_back(slot);
+    }
+    vs.last_pvs.swap(pvs);
+    for (std::uint32_t slot : wake) out->wake.push_back(s.objs[slot].id);
+    std::sort(out->pvs.begin(), out->pvs.end());
+    std::sort(out->wake.begin(), out->wake.end());
+    out->wake.erase(std::unique(out->wake.begin(), out->wake.end()), out->wake.end());
+
+    st.objects_discretized += s.pending.objects_discretized;
+    s.pending.objects_discretized = 0;
+    st.pvs_size = static_cast<std::uint32_t>(out->pvs.size());
+    st.tbvs_active = s.tbv_count;
+  }
+
+  // Phase 4: apply the queue now if no traversal is running; otherwise the
+  // next frame (or move) that holds `mu` exclusive does. Until then queued
+  // TBVs keep bounding their objects and unclaimed objects stay in the grid
+  // at their positions, both conservative.
+  {
+    std::unique_lock<std::shared_mutex> lock(s.mu, std::try_to_lock);
+    if (lock.owns_lock()) {
+      std::lock_guard<std::mutex> book(s.book);
+      if (s.queued(true)) {
+        s.apply_queue(st);
+        st.objects_discretized += s.pending.objects_discretized;
+        s.pending.objects_discretized = 0;
+        st.tbvs_active = s.tbv_count;
       }
     }
   }
-  for (std::uint32_t slot : s.unclaimed) {
-    Obj& o = s.objs[slot];
-    o.pending_unclaimed = false;
-    if (o.claims == 0 && !o.under_tbv) {
-      s.undiscretize(slot);
-      s.make_tbv(slot, t);
-      ++st.tbvs_created;
-    }
-  }
-  s.unclaimed.clear();
-
-  out->t = t;
-  out->pvs.clear();
-  out->wake.clear();
-  for (std::uint32_t slot : pvs) {
-    out->pvs.push_back(s.objs[slot].id);
-    if (s.objs[slot].dynamic) wake.push_back(slot);
-  }
-  vs.last_pvs.swap(pvs);
-  for (std::uint32_t slot : wake) out->wake.push_back(s.objs[slot].id);
-  std::sort(out->pvs.begin(), out->pvs.end());
-  std::sort(out->wake.begin(), out->wake.end());
-  out->wake.erase(std::unique(out->wake.begin(), out->wake.end()), out->wake.end());
-
-  st.objects_discretized += s.pending.objects_discretized;
-  s.pending.objects_discretized = 0;
-  st.pvs_size = static_cast<std::uint32_t>(out->pvs.size());
-  st.tbvs_active = s.tbv_count;
   st.time_us = std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count();
   out->stats = st;
   return Status::Ok();

@@ -48,8 +48,14 @@
 //     revealed in it (hidden objects woken). With /ob:256 the same with the
 //     occlusion buffer at 256 pixels.
 //
-// Filter with --benchmark_filter=walkthrough, hidden_dynamic, indoor, voxel_world
-// or city (a regular expression: 'city/ob:256', 'ob:(128|512)').
+//   viewers/voxel_world/n:V, viewers/walkthrough[/moves]/n:V
+//     V = 1, 2, 4 viewers of one scene, each on its own thread with its own
+//     Scratch, 100 frames each per iteration (BM_Viewers); /moves: viewer 0
+//     also applies the walkthrough's moves before each of its frames.
+//     answers_per_s (all viewers, wall time), median_us, p99_us.
+//
+// Filter with --benchmark_filter=walkthrough, hidden_dynamic, indoor, voxel_world,
+// city or viewers (a regular expression: 'city/ob:256', 'ob:(128|512)').
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -57,6 +63,8 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <mutex>
+#include <thread>
 #include <memory>
 #include <string>
 #include <vector>
@@ -426,6 +434,77 @@ void BM_HiddenDynamic(benchmark::State& state, int n, int ob) {
   state.SetItemsProcessed(static_cast<std::int64_t>(times.size()));
 }
 
+/// Frames of `viewers` viewers of one scene, each on its own thread with its
+/// own Scratch, walking the recording from its own start; with `moves`,
+/// viewer 0 also applies the recording's moves before each of its frames, as
+/// a simulation backend would (without, the dynamic objects stand still, but
+/// their TBVs still expire and are revealed). One iteration: 100 frames a
+/// viewer. Reports answers per second of wall time (all viewers) and the
+/// median frame time.
+void BM_Viewers(benchmark::State& state, Path which, glm::ivec3 grid, int viewers, bool moves) {
+  constexpr int kFrames = 100;
+  const Recording& rec = recording(which);
+  SceneDesc desc = rec.scene;
+  if (grid.x > 0) desc.grid = grid;
+  std::unique_ptr<Scene> scene;
+  if (const Status st = Scene::create(desc, SceneOptions{}, &scene); !st.ok) {
+    state.SkipWithError(("Scene::create: " + st.str()).c_str());
+    return;
+  }
+  const std::size_t n = rec.frames.size();
+  std::vector<ViewerId> ids;
+  std::vector<Scratch> scratch(static_cast<std::size_t>(viewers));
+  for (int v = 0; v < viewers; ++v) ids.push_back(scene->add_viewer());
+  std::size_t round = 0;
+  std::mutex times_mu;
+  std::vector<double> times;
+  bool failed = false;
+  auto run_viewer = [&](int v, std::size_t first) {
+    FrameResult result;
+    std::vector<double> own;
+    for (int i = 0; i < kFrames; ++i) {
+      const std::size_t step = first + static_cast<std::size_t>(i);
+      const std::size_t k = ping_pong(step + static_cast<std::size_t>(v) * n / static_cast<std::size_t>(viewers), n);
+      const double t = static_cast<double>(step) * rec.dt;
+      if (v == 0 && moves && !rec.frames[k].moves.empty() &&
+          !scene->apply_moves(t, rec.frames[k].moves, nullptr, Scene::Clock::Latest).ok) {
+        std::lock_guard<std::mutex> lock(times_mu);
+        failed = true;
+        return;
+      }
+      if (!scene->frame(ids[static_cast<std::size_t>(v)], rec.frames[k].camera, t,
+                        scratch[static_cast<std::size_t>(v)], &result, Scene::Clock::Latest)
+               .ok) {
+        std::lock_guard<std::mutex> lock(times_mu);
+        failed = true;
+        return;
+      }
+      own.push_back(result.stats.time_us);
+    }
+    std::lock_guard<std::mutex> lock(times_mu);
+    times.insert(times.end(), own.begin(), own.end());
+  };
+  run_viewer(0, 0);  // Warm-up: the first frames treat everything as visible.
+  times.clear();
+  double wall = 0.0;
+  for (auto _ : state) {
+    const auto t0 = std::chrono::steady_clock::now();
+    ++round;
+    std::vector<std::thread> threads;
+    for (int v = 0; v < viewers; ++v) threads.emplace_back(run_viewer, v, round * kFrames);
+    for (std::thread& th : threads) th.join();
+    wall += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (failed) {
+      state.SkipWithError("a frame or move failed");
+      break;
+    }
+  }
+  state.counters["answers_per_s"] = wall > 0.0 ? static_cast<double>(times.size()) / wall : 0.0;
+  state.counters["median_us"] = percentile(times, 0.5);
+  state.counters["p99_us"] = percentile(times, 0.99);
+  state.counters["viewers"] = viewers;
+}
+
 void register_all() {
   // The occlusion buffer's widths (SceneOptions::occlusion_buffer), 0 = off.
   const int widths[] = {0, 64, 128, 256, 512};
@@ -449,6 +528,25 @@ void register_all() {
           ->Iterations(598)
           ->Unit(benchmark::kMicrosecond);
     }
+  // One scene, several viewers, each frame on its own thread.
+  for (int v : {1, 2, 4}) {
+    const std::string n = "/n:" + std::to_string(v);
+    benchmark::RegisterBenchmark(("viewers/voxel_world" + n).c_str(), BM_Viewers, Path::Surface,
+                                 glm::ivec3(0), v, false)
+        ->Iterations(3)
+        ->UseRealTime()
+        ->Unit(benchmark::kMillisecond);
+    benchmark::RegisterBenchmark(("viewers/walkthrough" + n).c_str(), BM_Viewers, Path::Walkthrough,
+                                 glm::ivec3(100, 60, 100), v, false)
+        ->Iterations(3)
+        ->UseRealTime()
+        ->Unit(benchmark::kMillisecond);
+    benchmark::RegisterBenchmark(("viewers/walkthrough/moves" + n).c_str(), BM_Viewers, Path::Walkthrough,
+                                 glm::ivec3(100, 60, 100), v, true)
+        ->Iterations(3)
+        ->UseRealTime()
+        ->Unit(benchmark::kMillisecond);
+  }
   for (int ob : {0, 256})
     for (int n : {1000, 10000, 100000}) {
       const std::string name = "hidden_dynamic/n:" + std::to_string(n) + suffix(ob);

@@ -9,10 +9,14 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <future>
+#include <mutex>
+#include <shared_mutex>
 #include <thread>
 #include <vector>
 
 #include "engine_check.h"
+#include "scene_impl.h"
 #include "scenes.h"
 #include "voxvis/scene.h"
 
@@ -122,6 +126,94 @@ TEST(ConcurrentFrames, MovesAndViewerChangesDuringFrames) {
   // nothing is left claimed by the departed viewers.
   const std::vector<ObjectId> wake = scene->wake_set();
   EXPECT_LE(wake.size(), scene->dynamic_count());
+}
+
+TEST(ConcurrentFrames, AFrameDoesNotWaitForAnotherTraversal) {
+  // Frames change the grid (reveals, new TBVs) only under the scene's lock
+  // held exclusive, which waits for every traversal in progress; they queue
+  // those changes instead, so a frame with nothing due runs beside another
+  // viewer's traversal. Here the test holds the lock shared, as a traversal
+  // does, while a frame turns round and reveals TBVs behind a wall.
+  SceneDesc desc;
+  desc.bounds_max = Vec3(32.0);
+  desc.grid = glm::ivec3(32);
+  desc.objects.push_back(test::box_between(1, Vec3(10.0, 0.0, 0.0), Vec3(12.0, 32.0, 32.0)));
+  std::vector<ObjectDesc> hidden;
+  for (int i = 0; i < 4; ++i)
+    hidden.push_back(test::dynamic(test::sphere(static_cast<ObjectId>(2 + i), Vec3(20.5, 12.5 + 2.5 * i, 16.5), 0.4), 1.0));
+  desc.objects.insert(desc.objects.end(), hidden.begin(), hidden.end());
+  SceneOptions opt;
+  opt.tbv_period = 1000.0;  // Nothing expires in this test.
+  std::unique_ptr<Scene> scene;
+  ASSERT_TRUE(Scene::create(desc, opt, &scene));
+  Scene::Impl& s = scene->impl();
+  const ViewerId front = scene->add_viewer(), back = scene->add_viewer();
+  Scratch scratch;
+  Camera cam;
+  cam.eye = Vec3(3.3, 16.2, 16.1);
+  cam.dir = Vec3(1.0, 0.0, 0.0);
+  cam.up = Vec3(0.0, 1.0, 0.0);
+  cam.fov_y_deg = 70.0;
+  cam.aspect = 1.0;
+  cam.near = 0.05;
+  cam.far = 100.0;
+  // Both viewers in front of the wall: every sphere is hidden, unclaimed,
+  // and put under a TBV by the frames (nothing holds the lock yet).
+  FrameResult r;
+  ASSERT_TRUE(scene->frame(front, cam, 0.0, scratch, &r));
+  ASSERT_TRUE(scene->frame(back, cam, 0.0, scratch, &r));
+  EXPECT_TRUE(r.pvs == std::vector<ObjectId>{1});
+  EXPECT_TRUE(scene->wake_set().empty());
+  for (std::uint32_t slot = 1; slot < 5; ++slot) ASSERT_TRUE(s.objs[slot].under_tbv);
+  const std::uint64_t epoch = scene->wake_epoch();
+
+  // A traversal in progress (the lock held shared): the back viewer turns
+  // round behind the wall, reaches the TBVs, and its frame still completes.
+  Camera behind = cam;
+  behind.eye = Vec3(30.2, 16.2, 16.1);
+  behind.dir = Vec3(-1.0, 0.0, 0.0);
+  std::shared_lock<std::shared_mutex> traversal(s.mu);
+  auto done = std::async(std::launch::async, [&] {
+    Scratch own;
+    FrameResult out;
+    const Status st = scene->frame(back, behind, 1.0, own, &out);
+    return std::make_pair(st, out);
+  });
+  const bool finished = done.wait_for(std::chrono::seconds(20)) == std::future_status::ready;
+  if (!finished) traversal.unlock();  // Let it end rather than hang.
+  ASSERT_TRUE(finished) << "a frame waited for another viewer's traversal";
+  const auto [st, out] = done.get();
+  ASSERT_TRUE(st) << st.str();
+  // The TBVs it reached put their objects in the PVS and on the wake list
+  // at once, and the wake set says so, though the grid still holds the TBVs
+  // until the lock is free.
+  std::vector<ObjectId> spheres{2, 3, 4, 5};
+  for (ObjectId id : spheres) {
+    EXPECT_TRUE(std::binary_search(out.pvs.begin(), out.pvs.end(), id)) << id;
+    EXPECT_TRUE(std::binary_search(out.wake.begin(), out.wake.end(), id)) << id;
+  }
+  EXPECT_EQ(out.stats.tbvs_revealed, 4u);
+  EXPECT_NE(scene->wake_epoch(), epoch);
+  EXPECT_TRUE(scene->wake_set() == spheres);
+  {
+    std::lock_guard<std::mutex> book(s.book);
+    EXPECT_EQ(s.queued_reveals.size(), 4u);
+    for (std::uint32_t slot = 1; slot < 5; ++slot) EXPECT_TRUE(s.objs[slot].under_tbv);
+  }
+  traversal.unlock();
+
+  // The next frame applies the queue: the spheres are in the grid again,
+  // claimed by the back viewer, and it sees them through their voxels.
+  ASSERT_TRUE(scene->frame(back, behind, 2.0, scratch, &r));
+  {
+    std::lock_guard<std::mutex> book(s.book);
+    EXPECT_TRUE(s.queued_reveals.empty());
+    for (std::uint32_t slot = 1; slot < 5; ++slot) EXPECT_FALSE(s.objs[slot].under_tbv);
+  }
+  EXPECT_EQ(r.stats.tbvs_revealed, 0u);
+  EXPECT_EQ(r.stats.tbvs_created, 0u);
+  for (ObjectId id : spheres) EXPECT_TRUE(std::binary_search(r.pvs.begin(), r.pvs.end(), id)) << id;
+  EXPECT_TRUE(scene->wake_set() == spheres);
 }
 
 TEST(SceneClock, StrictRefusesAndLatestTakesTheSceneTime) {

@@ -83,6 +83,8 @@ struct FrameStats {
   std::uint32_t objects_discretized = 0;  ///< Dynamic objects (re)written into the grid.
   std::uint32_t tbvs_created = 0;
   std::uint32_t tbvs_revealed = 0;    ///< TBVs reached as not occluded (or left by a move).
+  /// TBVs renewed: expired, or (while other viewers' frames run) within
+  /// 0.1 s of expiring, renewed with them.
   std::uint32_t tbvs_expired = 0;
   std::uint32_t tbvs_active = 0;      ///< TBVs alive after the frame.
   std::uint32_t speed_violations = 0; ///< Moves since the last frame faster than max_speed.
@@ -204,6 +206,8 @@ class Scene {
   std::vector<Move> dynamic_centers(double* time = nullptr) const;
 
   struct Impl;
+  /// The engine's internals (grid/src/scene_impl.h), for its own tests.
+  Impl& impl() { return *impl_; }
 
  private:
   explicit Scene(std::unique_ptr<Impl> impl);
