@@ -3,6 +3,7 @@
 #include "occlusion_buffer.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <limits>
 
@@ -24,7 +25,14 @@ constexpr double kDepthSlack = 1e-7;
 float round_up(double d) {
   if (!(d < static_cast<double>(std::numeric_limits<float>::max()))) return std::numeric_limits<float>::infinity();
   float f = static_cast<float>(d);
-  if (static_cast<double>(f) < d) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+  if (static_cast<double>(f) < d) {
+    if (f > 0.0f) {
+      // The next float up: one more in the bits of a positive finite float.
+      f = std::bit_cast<float>(std::bit_cast<std::uint32_t>(f) + 1u);
+    } else {
+      f = std::nextafter(f, std::numeric_limits<float>::infinity());
+    }
+  }
   return f;
 }
 
@@ -109,29 +117,35 @@ bool OcclusionBuffer::rect(double x0, double x1, double y0, double y1, int* i0, 
   return true;
 }
 
-template <class Entry>
-bool OcclusionBuffer::fill(int i0, int i1, int j0, int j1, double nearest, Entry&& entry) {
+template <class Entry, class Least>
+bool OcclusionBuffer::fill(int i0, int i1, int j0, int j1, double nearest, Entry&& entry, Least&& least) {
   bool any = false;
   // Tile by tile, so that a tile whose every pixel already holds a bound no
-  // farther than the occluder's nearest depth costs one comparison: the
-  // occluder cannot lower any of them.
+  // farther than the occluder's nearest depth there costs a few operations:
+  // the occluder cannot lower any of them.
   for (int tj = j0 / kTile; tj <= j1 / kTile; ++tj)
     for (int ti = i0 / kTile; ti <= i1 / kTile; ++ti) {
       const auto t = static_cast<std::size_t>(tj * tw_ + ti);
       if (tile_frame_[t] == frame_) {
         const double m = static_cast<double>(tile_max(t));
         if (m <= nearest) continue;
-        // A guess, which may only cost pixels the occluder could have
-        // lowered (writing is optional; the buffer stays conservative):
-        // when the rays through the tile's four corners all enter the
-        // occluder beyond the tile's largest bound, skip the tile.
-        bool behind = true;
-        for (int c = 0; c < 4 && behind; ++c) {
+        // The rays through the corners of the tile's part of the rectangle.
+        Vec3 d[4];
+        for (int c = 0; c < 4; ++c) {
           const int ci = std::clamp((ti + (c & 1)) * kTile, i0, i1 + 1);
           const int cj = std::clamp((tj + (c >> 1)) * kTile, j0, j1 + 1);
-          const Vec3 d = f_ + ((2.0 * ci / w_ - 1.0) * tan_x_) * r_ + ((2.0 * cj / h_ - 1.0) * tan_y_) * u_;
+          d[c] = f_ + ((2.0 * ci / w_ - 1.0) * tan_x_) * r_ + ((2.0 * cj / h_ - 1.0) * tan_y_) * u_;
+        }
+        // Writing is optional (the buffer stays conservative), so these
+        // skips may be guesses that only cost pixels the occluder could have
+        // lowered: the occluder's least depth over the tile, when the shape
+        // can bound it; and the rays through the corners all entering it
+        // beyond the tile's largest bound.
+        if (m <= least(d)) continue;
+        bool behind = true;
+        for (int c = 0; c < 4 && behind; ++c) {
           double te = -1.0;
-          behind = entry(d, &te) && te > m;
+          behind = entry(d[c], &te) && te > m;
         }
         if (behind) continue;
       }
@@ -253,11 +267,11 @@ bool OcclusionBuffer::render_sphere(const Vec3& c, double radius) {
       // The part beyond the near plane: the ray must leave the shrunk ball
       // beyond it, and is first inside the ball at max(entry, near).
       if (!(q / a >= near_ * (1.0 + kDepthSlack) + abs_slack)) return false;
-      te = std::fmax(te, near_);
+      if (te < near_) te = near_;
     }
     *t = te * (1.0 + kDepthSlack) + abs_slack;
     return true;
-  });
+  }, [](const Vec3 (&)[4]) { return 0.0; });
 }
 
 bool OcclusionBuffer::render_box(const Vec3& lo, const Vec3& hi) {
@@ -315,31 +329,72 @@ bool OcclusionBuffer::render_box(const Vec3& lo, const Vec3& hi) {
   if (!rect(x0, x1, y0, y1, &i0, &i1, &j0, &j1)) return false;
   const double abs_slack = 1e-9 * mag;
   const double near_exit = near_ * (1.0 + kDepthSlack) + abs_slack;
-  return fill(i0, i1, j0, j1, std::fmax(zmin, near_), [&](const Vec3& d, double* t) {
-    double tin = 0.0, tout = kInf, err = 0.0;
-    for (int a = 0; a < 3; ++a) {
-      if (d[a] == 0.0) {
-        if (L[a] > 0.0 || H[a] < 0.0) return false;
-        continue;
-      }
-      const double inv = 1.0 / d[a];
-      double ta = L[a] * inv, tb = H[a] * inv;
-      if (ta > tb) std::swap(ta, tb);
-      if (ta > tin) {
-        tin = ta;
-        err = 4.0 * kEps * mag * std::fabs(inv);  // The face's coordinate is good to eps * mag.
-      }
-      tout = std::fmin(tout, tb);
+  // The slab test of the ray eye + t d against [L, H], in reciprocals of
+  // the face planes so that a ray costs one division (for its depth), not
+  // three. Along an axis where the eye lies below the slab, the ray enters
+  // at t = L/d and leaves at H/d, so it needs d > 0 and meets the planes at
+  // 1/t = d/L and d/H; above the slab the same with L and H swapped; within
+  // it the ray only leaves, at 1/t = d/H (d > 0) or d/L (d < 0). The ray
+  // hits the box when every entry reciprocal is positive and the least of
+  // them (the last entry) is no smaller than the largest exit reciprocal.
+  // Reciprocals are good to a few eps, far below kDepthSlack.
+  double in_r[3], out_r[3], out_r2[3], face[3];
+  int outside[3], n_out = 0, inside[3], n_in = 0;
+  for (int a = 0; a < 3; ++a) {
+    if (L[a] > 0.0) {
+      in_r[a] = 1.0 / L[a], out_r[a] = 1.0 / H[a], face[a] = L[a];
+      outside[n_out++] = a;
+    } else if (H[a] < 0.0) {
+      in_r[a] = 1.0 / H[a], out_r[a] = 1.0 / L[a], face[a] = -H[a];
+      outside[n_out++] = a;
+    } else {
+      out_r[a] = 1.0 / H[a], out_r2[a] = 1.0 / L[a];  // +inf and -inf on a face: leaves at once.
+      inside[n_in++] = a;
     }
-    if (!(tin <= tout) || !(tin > 0.0)) return false;
+  }
+  if (n_out == 0) return false;  // The eye is in the box (the test above, with rounding).
+  const double exit_cap = 1.0 / near_exit;  // Leaving beyond the near plane.
+  return fill(i0, i1, j0, j1, std::fmax(zmin, near_), [&](const Vec3& d, double* t) {
+    double least_in = kInf, most_out = 0.0, entry_face = 1.0;
+    for (int k = 0; k < n_out; ++k) {
+      const int a = outside[k];
+      const double e = d[a] * in_r[a];
+      if (!(e > 0.0)) return false;  // Heading away from the slab, or along it.
+      if (e < least_in) least_in = e, entry_face = face[a];
+      const double x = d[a] * out_r[a];
+      if (x > most_out) most_out = x;
+    }
+    for (int k = 0; k < n_in; ++k) {
+      const int a = inside[k];
+      const double x = std::max(d[a] * out_r[a], d[a] * out_r2[a]);  // NaN (d = 0 on a face) never wins.
+      if (x > most_out) most_out = x;
+    }
+    if (!(least_in >= most_out)) return false;
+    double tin = 1.0 / least_in;
+    // The face's coordinate is good to eps * mag: its plane's depth along
+    // this ray to eps * mag / |d| = eps * mag * tin / |face|.
+    double err = 4.0 * kEps * mag * tin / entry_face;
     if (clip) {
       // The part beyond the near plane: the ray must leave the shrunk box
       // beyond it, and is first inside the box at max(entry, near).
-      if (!(tout >= near_exit)) return false;
+      if (!(most_out <= exit_cap)) return false;
       if (tin < near_) tin = near_, err = 0.0;
     }
     *t = tin * (1.0 + kDepthSlack) + abs_slack + err;
     return true;
+  }, [&](const Vec3 (&d)[4]) {
+    // Over the tile every hitting ray enters at or beyond each front
+    // face's plane, and a plane's depth P/d_a over the tile is least where
+    // |d_a| is largest, at a corner (d is affine in the image point).
+    double lb = 0.0;
+    for (int k = 0; k < n_out; ++k) {
+      const int a = outside[k];
+      double dlo = d[0][a], dhi = d[0][a];
+      for (int c = 1; c < 4; ++c) dlo = std::min(dlo, d[c][a]), dhi = std::max(dhi, d[c][a]);
+      if (L[a] > 0.0 && dlo > 0.0) lb = std::max(lb, L[a] / dhi);
+      if (H[a] < 0.0 && dhi < 0.0) lb = std::max(lb, H[a] / dlo);
+    }
+    return lb;
   });
 }
 

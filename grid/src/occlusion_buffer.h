@@ -95,9 +95,11 @@ class OcclusionBuffer {
   bool rect_hidden(int i0, int i1, int j0, int j1, double zmin) const;
   /// Writes the pixels of [i0..i1] x [j0..j1] from their corners' entry
   /// depths, `entry(dir, &t)` false for a miss; `nearest` bounds the
-  /// occluder's depth from below (tiles already nearer are skipped).
-  template <class Entry>
-  bool fill(int i0, int i1, int j0, int j1, double nearest, Entry&& entry);
+  /// occluder's depth from below, and `least(dirs)` over the square of
+  /// the four corner rays `dirs` (0 when the shape cannot tell): tiles
+  /// already nearer are skipped.
+  template <class Entry, class Least>
+  bool fill(int i0, int i1, int j0, int j1, double nearest, Entry&& entry, Least&& least);
   /// The same within one tile.
   template <class Entry>
   bool fill_tile(int i0, int i1, int j0, int j1, double nearest, Entry& entry);
