@@ -173,7 +173,9 @@ bool OcclusionBuffer::fill_tile(int i0, int i1, int j0, int j1, double nearest, 
       corner_t[jj * nc + ii] = t;
     }
   }
-  bool any = false;
+  bool any = false, lowered = false;
+  float* tile = nullptr;
+  std::size_t t_index = 0;
   for (int j = j0; j <= j1; ++j) {
     const double* c0 = corner_t + (j - j0) * nc;
     const double* c1 = c0 + nc;
@@ -196,10 +198,24 @@ bool OcclusionBuffer::fill_tile(int i0, int i1, int j0, int j1, double nearest, 
         if (hits < 4) continue;  // Inner coverage: all four corner rays hit.
         d = fault == BufferFault::NearDepth ? nearest : tmax;
       }
-      write(i, j, d);
-      any = true;
+      if (tile == nullptr) {
+        // The first write prepares the tile (all these pixels lie in one).
+        write(i, j, d);
+        t_index = static_cast<std::size_t>((j / kTile) * tw_ + i / kTile);
+        tile = px_.data() + t_index * kTile * kTile;
+        any = true;
+        continue;
+      }
+      float& p = tile[(j % kTile) * kTile + i % kTile];
+      const float v = round_up(d);
+      if (v < p) {
+        p = v;
+        lowered = true;
+        ++written_;
+      }
     }
   }
+  if (lowered) tile_dirty_[t_index] = 1;
   return any;
 }
 
