@@ -897,7 +897,7 @@ void Scene::remove_viewer(ViewerId viewer) {
 Status Scene::apply_moves(double t, std::span<const Move> moves, MoveReport* report,
                           Clock clock) {
   Impl& s = *impl_;
-  std::unique_lock<std::shared_mutex> lock(s.mu);
+  std::unique_lock<detail::GridMutex> lock(s.mu);
   std::lock_guard<std::mutex> book(s.book);
   if (Status st = validate_time("t", t); !st) return st;
   if (clock == Clock::Latest && s.time_set) t = std::fmax(t, s.time);
@@ -966,7 +966,7 @@ std::uint64_t Scene::wake_epoch() const {
 }
 
 std::vector<Move> Scene::dynamic_centers(double* time) const {
-  std::shared_lock<std::shared_mutex> lock(impl_->mu);
+  std::shared_lock<detail::GridMutex> lock(impl_->mu);
   std::lock_guard<std::mutex> book(impl_->book);
   if (time) *time = impl_->time;
   std::vector<Move> out;
@@ -978,7 +978,7 @@ std::vector<Move> Scene::dynamic_centers(double* time) const {
 }
 
 std::vector<ObjectId> Scene::wake_set() const {
-  std::shared_lock<std::shared_mutex> lock(impl_->mu);
+  std::shared_lock<detail::GridMutex> lock(impl_->mu);
   std::lock_guard<std::mutex> book(impl_->book);
   std::vector<ObjectId> ids;
   // A queued reveal is a wake already reported by its frame.

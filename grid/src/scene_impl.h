@@ -97,6 +97,34 @@ struct ViewerState {
   std::vector<std::uint32_t> last_pvs;  ///< Slots, ascending.
 };
 
+/// The grid's reader-writer lock, with writers first. glibc's rwlock lets
+/// new readers in while a writer waits, so viewers whose frames overlap
+/// without a gap (several of them, each busy) would keep a move batch or an
+/// expired TBV waiting forever. A writer holds `gate_` while it waits; a
+/// reader passes through `gate_` before it takes the lock, so it queues
+/// behind a waiting writer instead of overtaking it. No thread takes the
+/// lock again while holding it (shared or not), so a writer holding the
+/// gate only ever waits for readers that are already inside.
+class GridMutex {
+ public:
+  void lock() {
+    std::lock_guard<std::mutex> g(gate_);
+    mu_.lock();
+  }
+  bool try_lock() { return mu_.try_lock(); }
+  void unlock() { mu_.unlock(); }
+  void lock_shared() {
+    { std::lock_guard<std::mutex> g(gate_); }
+    mu_.lock_shared();
+  }
+  bool try_lock_shared() { return mu_.try_lock_shared(); }
+  void unlock_shared() { mu_.unlock_shared(); }
+
+ private:
+  std::mutex gate_;
+  std::shared_mutex mu_;
+};
+
 }  // namespace detail
 
 struct Scratch::Impl {
@@ -143,7 +171,7 @@ struct Scene::Impl {
   ///    the seen record, the queues below, counters between frames and the
   ///    wake epoch. A frame takes it briefly, so frames of different viewers
   ///    do not wait for each other's traversals.
-  mutable std::shared_mutex mu;
+  mutable detail::GridMutex mu;
   mutable std::mutex book;
 
   GridSpec spec;

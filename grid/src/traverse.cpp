@@ -821,7 +821,7 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
     change = !s.expiry.empty() && s.expiry.top().expiry <= t;
   }
   if (change) {
-    std::unique_lock<std::shared_mutex> lock(s.mu);
+    std::unique_lock<detail::GridMutex> lock(s.mu);
     std::lock_guard<std::mutex> book(s.book);
     s.apply_queue(st, s.claims_made);
     // Expired TBVs get a new validity period around the object's current
@@ -852,7 +852,7 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
   // Phase 2, shared: the traversal and the tests beyond the grid only read
   // the scene, so frames of different viewers run this part in parallel.
   {
-    std::shared_lock<std::shared_mutex> lock(s.mu);
+    std::shared_lock<detail::GridMutex> lock(s.mu);
     w.ob.begin(wf, s.options.occlusion_buffer);
     st.ob_width = static_cast<std::uint32_t>(w.ob.width());
     Traversal trav(s, w, wf, st);
@@ -997,7 +997,7 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
   // TBVs keep bounding their objects and unclaimed objects stay in the grid
   // at their positions, both conservative.
   {
-    std::unique_lock<std::shared_mutex> lock(s.mu, std::try_to_lock);
+    std::unique_lock<detail::GridMutex> lock(s.mu, std::try_to_lock);
     if (lock.owns_lock()) {
       std::lock_guard<std::mutex> book(s.book);
       if (s.queued(true)) {

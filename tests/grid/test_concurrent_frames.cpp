@@ -2,7 +2,8 @@
 // traverses under a shared lock and defers the TBVs it reaches). Each round
 // here moves the objects, then computes every viewer's frame on its own
 // thread at once; every result must still contain every visible object.
-// A second test runs moves concurrently with frames, for the sanitizers.
+// A second test runs moves concurrently with frames, for the sanitizers; a
+// third shows that the grid lock lets a waiting writer in before new readers.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -172,7 +173,7 @@ TEST(ConcurrentFrames, AFrameDoesNotWaitForAnotherTraversal) {
   Camera behind = cam;
   behind.eye = Vec3(30.2, 16.2, 16.1);
   behind.dir = Vec3(-1.0, 0.0, 0.0);
-  std::shared_lock<std::shared_mutex> traversal(s.mu);
+  std::shared_lock<detail::GridMutex> traversal(s.mu);
   auto done = std::async(std::launch::async, [&] {
     Scratch own;
     FrameResult out;
@@ -241,6 +242,38 @@ TEST(SceneClock, StrictRefusesAndLatestTakesTheSceneTime) {
   ASSERT_TRUE(scene->apply_moves(3.0, moves, &report, Scene::Clock::Latest));
   EXPECT_EQ(report.t, 3.0);
   EXPECT_EQ(scene->time(), 3.0);
+}
+
+TEST(ConcurrentFrames, AWriterIsNotStarvedByOverlappingReaders) {
+  // Three "traversals" hold the grid lock shared in turns that overlap, so
+  // that at every moment one of them holds it, as busy viewers' frames do.
+  // A move batch (the lock exclusive) must still get in: with a lock that
+  // lets new readers overtake a waiting writer it would wait until the
+  // readers stop, which this test does only after 10 s, as a failure.
+  detail::GridMutex mu;
+  std::atomic<bool> stop{false};
+  const auto reader = [&](int phase) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(phase));
+    while (!stop.load()) {
+      std::shared_lock<detail::GridMutex> hold(mu);
+      std::this_thread::sleep_for(std::chrono::milliseconds(4));
+    }
+  };
+  std::thread a(reader, 0), b(reader, 1), c(reader, 2);
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  std::promise<void> got;
+  std::future<void> got_future = got.get_future();
+  std::thread writer([&] {
+    std::unique_lock<detail::GridMutex> lock(mu);
+    got.set_value();
+  });
+  const bool in_time = got_future.wait_for(std::chrono::seconds(10)) == std::future_status::ready;
+  stop.store(true);
+  writer.join();
+  a.join();
+  b.join();
+  c.join();
+  EXPECT_TRUE(in_time) << "the exclusive locker waited for 10 s behind overlapping shared holders";
 }
 
 }  // namespace
