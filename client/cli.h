@@ -26,7 +26,7 @@ struct ReplayArgs {
   std::string grid;    ///< "NX,NY,NZ" overriding the scene's grid; empty: keep.
   std::string out;     ///< Output file; empty: stdout.
   std::optional<double> tbv_period;  ///< Seconds; empty: engine default.
-  int occlusion_buffer = 0;          ///< Occlusion buffer width, pixels; 0: off.
+  int occlusion_buffer = 128;        ///< Occlusion buffer width, pixels; 0: off.
   bool quiet = false;
 };
 

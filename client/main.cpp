@@ -82,8 +82,8 @@ int run(int argc, char** argv) {
       "Fixed validity period of temporal bounding volumes, seconds (default: adaptive)")
       ->type_name("SECONDS");
   replay_cmd->add_option("--occlusion-buffer", replay.occlusion_buffer,
-                         "Width in pixels of the conservative occlusion buffer (8..4096; "
-                         "default 0: off)")
+                         "Width in pixels of the conservative occlusion buffer (8..4096, "
+                         "or 0: off; default 128)")
       ->type_name("PIXELS");
   replay_cmd->add_flag("-q,--quiet", replay.quiet, "No progress line and no summary on stderr");
   replay_cmd->footer(

@@ -165,6 +165,12 @@ void stats_to_proto(const FrameStats& in, v1::FrameStats* out) {
   out->set_outside_tested(in.outside_tested);
   out->set_pvs_size(in.pvs_size);
   out->set_early_exit(in.early_exit);
+  out->set_front_voxels_culled(in.front_voxels_culled);
+  out->set_front_objects_culled(in.front_objects_culled);
+  out->set_ob_width(in.ob_width);
+  out->set_ob_voxels_culled(in.ob_voxels_culled);
+  out->set_ob_objects_culled(in.ob_objects_culled);
+  out->set_ob_occluders(in.ob_occluders);
 }
 
 std::uint64_t estimate_scene_bytes(const SceneDesc& desc, const glm::ivec3& res, unsigned workers) {

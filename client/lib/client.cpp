@@ -209,6 +209,12 @@ FrameStats from_proto(const v1::FrameStats& stats) {
   s.outside_tested = stats.outside_tested();
   s.pvs_size = stats.pvs_size();
   s.early_exit = stats.early_exit();
+  s.front_voxels_culled = stats.front_voxels_culled();
+  s.front_objects_culled = stats.front_objects_culled();
+  s.ob_width = stats.ob_width();
+  s.ob_voxels_culled = stats.ob_voxels_culled();
+  s.ob_objects_culled = stats.ob_objects_culled();
+  s.ob_occluders = stats.ob_occluders();
   return s;
 }
 

@@ -1056,6 +1056,8 @@ std::string result_to_json(std::size_t frame_index, const FrameResult& result) {
   count("pvs_size", s.pvs_size);
   out += ",\"early_exit\":";
   out += s.early_exit ? "true" : "false";
+  count("front_voxels_culled", s.front_voxels_culled);
+  count("front_objects_culled", s.front_objects_culled);
   if (s.ob_width > 0) {
     // Only with the occlusion buffer on (docs/formats.md).
     count("ob_width", s.ob_width);

@@ -151,7 +151,7 @@ nlohmann::json check_output_line(const std::string& line, std::size_t index) {
   const auto& s = j.at("stats");
   for (const char* key : {"voxels_visited", "shells", "objects_discretized", "tbvs_created",
                           "tbvs_revealed", "tbvs_expired", "tbvs_active", "speed_violations",
-                          "outside_tested", "pvs_size"}) {
+                          "outside_tested", "pvs_size", "front_voxels_culled", "front_objects_culled"}) {
     EXPECT_TRUE(s.at(key).is_number_unsigned() || s.at(key).get<std::int64_t>() >= 0) << key;
   }
   EXPECT_GE(s.at("time_us").get<double>(), 0.0);

@@ -17,6 +17,14 @@
 
 namespace voxvis::test {
 
+/// Options with the occlusion buffer off: the object-space culling alone,
+/// for the tests whose claims are about it (the engine's default renders a
+/// buffer 128 pixels wide, which would hide what those tests look for).
+inline SceneOptions buffer_off(SceneOptions options = {}) {
+  options.occlusion_buffer = 0;
+  return options;
+}
+
 /// Checks one frame; returns "" when fine, else a full description (scene
 /// label, frame, camera, missed ids with their objects). `label` should carry
 /// the seed.

@@ -23,7 +23,7 @@ void replay(const ScenePath& p, int width, const std::string& label, double* wit
   SceneOptions on;
   on.occlusion_buffer = width;
   EngineHarness a(p.scene, on, label + " ob=" + std::to_string(width));
-  EngineHarness b(p.scene, {}, label);
+  EngineHarness b(p.scene, buffer_off(), label);
   ASSERT_TRUE(a.status().ok) << a.status().str();
   *with = *without = 0.0;
   for (std::size_t f = 0; f < p.cameras.size(); ++f) {

@@ -608,6 +608,8 @@ TEST(ResultFormat, OneCompactLineWithAllFields) {
   r.stats.outside_tested = 8;
   r.stats.pvs_size = 3;
   r.stats.early_exit = true;
+  r.stats.front_voxels_culled = 9;
+  r.stats.front_objects_culled = 10;
   r.stats.time_us = 12.3456;
   const std::string line = result_to_json(42, r);
   EXPECT_EQ(line.find('\n'), std::string::npos);
@@ -618,7 +620,7 @@ TEST(ResultFormat, OneCompactLineWithAllFields) {
   EXPECT_EQ(j.at("pvs"), nlohmann::json::array({1, 5, 4294967295u}));
   EXPECT_EQ(j.at("wake"), nlohmann::json::array({5}));
   const nlohmann::json& s = j.at("stats");
-  EXPECT_EQ(s.size(), 12u);
+  EXPECT_EQ(s.size(), 14u);  // No buffer counters: ob_width is 0 (off).
   EXPECT_NEAR(s.at("time_us").get<double>(), 12.346, 1e-9);
   EXPECT_EQ(s.at("voxels_visited"), 123456789012ull);
   EXPECT_EQ(s.at("shells"), 17);
@@ -631,12 +633,14 @@ TEST(ResultFormat, OneCompactLineWithAllFields) {
   EXPECT_EQ(s.at("outside_tested"), 8);
   EXPECT_EQ(s.at("pvs_size"), 3);
   EXPECT_EQ(s.at("early_exit"), true);
+  EXPECT_EQ(s.at("front_voxels_culled"), 9);
+  EXPECT_EQ(s.at("front_objects_culled"), 10);
 }
 
 TEST(ResultFormat, EmptyResult) {
   const std::string line = result_to_json(0, FrameResult{});
   EXPECT_THAT(line, HasSubstr("{\"frame\":0,\"pvs\":[],\"wake\":[],\"stats\":{\"time_us\":0.000,"));
-  EXPECT_THAT(line, HasSubstr("\"early_exit\":false}}"));
+  EXPECT_THAT(line, HasSubstr("\"early_exit\":false,\"front_voxels_culled\":0,\"front_objects_culled\":0}}"));
   EXPECT_FALSE(nlohmann::json::parse(line, nullptr, false).is_discarded());
 }
 

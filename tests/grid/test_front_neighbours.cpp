@@ -89,7 +89,7 @@ TEST(FrontNeighbours, EyeOnVoxelPlanesStaysConservative) {
   // axes and diagonals: the rule cannot tell the eye's side there and must
   // not guess. Zero misses with the corner rays the harness casts.
   const Ground g = make_ground(8);
-  EngineHarness h(g.scene, {}, "ground, eye on planes");
+  EngineHarness h(g.scene, buffer_off(), "ground, eye on planes");
   ASSERT_TRUE(h.status().ok);
   int f = 0;
   for (const Vec3 eye : {Vec3(4.0, 3.0, -2.0), Vec3(4.0, 2.0, -2.5), Vec3(3.0, 2.0, 1.0), Vec3(0.0, 2.0, 0.0),
@@ -140,7 +140,7 @@ TEST(FrontNeighbours, VoxelWorldZeroMissesAndTighter) {
   // removes blocks under the surface that touch voxels in view.
   for (bool cave : {false, true}) {
     const ScenePath p = make_voxel_world(32, std::max(4, scaled(12)), cave, 5);
-    EngineHarness h(p.scene, {}, cave ? "voxel world, cave" : "voxel world, surface");
+    EngineHarness h(p.scene, buffer_off(), cave ? "voxel world, cave" : "voxel world, surface");
     ASSERT_TRUE(h.status().ok);
     std::uint64_t culled = 0;
     for (std::size_t f = 0; f < p.cameras.size(); ++f) {

@@ -53,7 +53,7 @@ TEST(Shadows, PersistAtEveryDistanceBehindAnOccluder) {
     for (int distance : {6, 17}) {
       const std::string label = "wall " + std::to_string(width) + " at " + std::to_string(distance);
       const SceneDesc d = shadow_scene(width, distance);
-      EngineHarness h(d, {}, label);
+      EngineHarness h(d, buffer_off(), label);
       ASSERT_TRUE(h.status().ok) << label << ": " << h.status().str();
       const std::string err = h.frame(cam, 0.0);
       ASSERT_TRUE(err.empty()) << err;

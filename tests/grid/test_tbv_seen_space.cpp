@@ -79,7 +79,7 @@ TEST(TbvSeenSpace, HiddenObjectsAroundAClosedRoomAreNeverRevealed) {
   // Periods grow to the time to cross 8 voxels (12 with the per-object
   // factor): grown as they were, TBVs of objects 2 voxels outside the room
   // reach through its 2-voxel walls into the space the eye sees.
-  EngineHarness h(room_with_hidden(400, 3.0, 77), {}, "closed room, 400 hidden");
+  EngineHarness h(room_with_hidden(400, 3.0, 77), buffer_off(), "closed room, 400 hidden");
   ASSERT_TRUE(h.status().ok) << h.status().str();
   double t = 0.0;
   int f = 0;
@@ -109,7 +109,7 @@ TEST(TbvSeenSpace, WithoutMemoryTheTurningViewerRevealsTbvs) {
   // relies on.
   SceneOptions options;
   options.tbv_seen_memory = 0.0;
-  EngineHarness h(room_with_hidden(400, 3.0, 77), options, "closed room, no memory");
+  EngineHarness h(room_with_hidden(400, 3.0, 77), buffer_off(options), "closed room, no memory");
   ASSERT_TRUE(h.status().ok) << h.status().str();
   double t = 0.0;
   std::uint32_t revealed = 0;
@@ -128,7 +128,7 @@ TEST(TbvSeenSpace, AnObjectWalkingIntoTheRoomIsRevealedAndSeen) {
   std::vector<std::pair<ObjectId, Vec3>> walkers;
   for (const ObjectDesc& o : scene.objects)
     if (o.id >= kFirstHidden && walkers.size() < 8) walkers.emplace_back(o.id, o.center);
-  EngineHarness h(scene, {}, "closed room, walkers");
+  EngineHarness h(scene, buffer_off(), "closed room, walkers");
   ASSERT_TRUE(h.status().ok) << h.status().str();
   double t = 0.0;
   int f = 0;

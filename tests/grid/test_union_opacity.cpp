@@ -92,7 +92,7 @@ SceneDesc closed_room(double voxel, double tile) {
 }
 
 void expect_room_sealed(const SceneDesc& scene, double voxel, const std::string& label) {
-  EngineHarness h(scene, {}, label);
+  EngineHarness h(scene, buffer_off(), label);
   ASSERT_TRUE(h.status().ok) << h.status().str();
   double t = 0.0;
   for (const Vec3& eye : {Vec3(16.0), Vec3(12.5, 19.0, 14.0), Vec3(11.2, 10.6, 21.3), Vec3(10.0, 10.0, 21.9)}) {
@@ -140,13 +140,13 @@ SceneDesc wall_scene(double lo_z) {
 TEST(UnionOpacity, ExactVoxelBoundaryCoversAndOneUlpInwardDoesNot) {
   const Camera cam = camera(Vec3(8.5, 8.5, 14.5), Vec3(0, 0, -1));
   {
-    EngineHarness h(wall_scene(8.0), {}, "wall on voxel planes");
+    EngineHarness h(wall_scene(8.0), buffer_off(), "wall on voxel planes");
     ASSERT_TRUE(h.status().ok);
     ASSERT_EQ(h.frame(cam, 0.0), "");
     EXPECT_FALSE(contains(h.last().pvs, 2)) << "a wall exactly on voxel planes must occlude";
   }
   {
-    EngineHarness h(wall_scene(std::nextafter(8.0, 9.0)), {}, "wall one ulp inward");
+    EngineHarness h(wall_scene(std::nextafter(8.0, 9.0)), buffer_off(), "wall one ulp inward");
     ASSERT_TRUE(h.status().ok);
     ASSERT_EQ(h.frame(cam, 0.0), "");
     EXPECT_TRUE(contains(h.last().pvs, 2)) << "a face one ulp inside the voxel must not cover it";
@@ -155,7 +155,7 @@ TEST(UnionOpacity, ExactVoxelBoundaryCoversAndOneUlpInwardDoesNot) {
     // Bounds offset so that the mapping rounds: 0.1-unit voxels from 0.3.
     SceneDesc s = wall_scene(8.0);
     s = transform_scene(s, 0.1, Vec3(0.3));
-    EngineHarness h(s, {}, "wall, rounded mapping");
+    EngineHarness h(s, buffer_off(), "wall, rounded mapping");
     ASSERT_TRUE(h.status().ok);
     ASSERT_EQ(h.frame(transform_camera(cam, 0.1, Vec3(0.3)), 0.0), "");
   }
@@ -164,7 +164,7 @@ TEST(UnionOpacity, ExactVoxelBoundaryCoversAndOneUlpInwardDoesNot) {
 TEST(UnionOpacity, VoxelWorldOfUnitBlocks) {
   for (bool cave : {true, false}) {
     const ScenePath p = make_voxel_world(32, 24, cave, 5);
-    EngineHarness h(p.scene, {}, cave ? "voxel world, cave" : "voxel world, surface");
+    EngineHarness h(p.scene, buffer_off(), cave ? "voxel world, cave" : "voxel world, surface");
     ASSERT_TRUE(h.status().ok) << h.status().str();
     double pvs = 0.0, vfc = 0.0;
     for (std::size_t f = 0; f < p.cameras.size(); ++f) {
@@ -180,7 +180,7 @@ TEST(UnionOpacity, VoxelWorldOfUnitBlocks) {
 
 TEST(UnionOpacity, IndoorLevelOfAbuttingWalls) {
   const ScenePath p = make_indoor_level(3, 3, 30, 9);
-  EngineHarness h(p.scene, {}, "indoor level");
+  EngineHarness h(p.scene, buffer_off(), "indoor level");
   ASSERT_TRUE(h.status().ok) << h.status().str();
   for (std::size_t f = 0; f < p.cameras.size(); ++f) {
     const std::string err = h.frame(p.cameras[f], static_cast<double>(f) * kDt);
@@ -209,7 +209,7 @@ TEST(UnionOpacity, StackedDynamicCratesCoverTogetherAndUncoverWhenOneMoves) {
       s.objects.push_back(c);
     }
   s.objects.push_back(sphere(1000, Vec3(8.0, 1.5, 4.0), 0.4));
-  EngineHarness h(s, {}, "stacked crates");
+  EngineHarness h(s, buffer_off(), "stacked crates");
   ASSERT_TRUE(h.status().ok) << h.status().str();
   const Camera cam = camera(Vec3(8.2, 1.6, 15.3), Vec3(0, 0, -1), 50.0);
   double t = 0.0;
@@ -245,7 +245,7 @@ TEST(UnionOpacity, DenseRandomAbuttingBoxesHaveZeroMisses) {
       if (id % 4 == 0) o = dynamic(o, 6.0);
       s.objects.push_back(o);
     }
-    EngineHarness h(s, {}, "dense boxes seed=" + std::to_string(seed));
+    EngineHarness h(s, buffer_off(), "dense boxes seed=" + std::to_string(seed));
     ASSERT_TRUE(h.status().ok);
     Mover mover(s, seed, 0.0);
     for (int f = 0; f < 40; ++f) {
@@ -278,12 +278,12 @@ TEST(UnionOpacity, NonConservativeCoverIsCaughtByTheRayCaster) {
     return s;
   };
   const Camera cam = camera(Vec3(8.0, 8.0, 10.8), Vec3(0, 0, -1), 60.0);
-  EngineHarness truth(wall(0.02), {}, "slit");
+  EngineHarness truth(wall(0.02), buffer_off(), "slit");
   ASSERT_TRUE(truth.status().ok);
   ASSERT_EQ(truth.frame(cam, 0.0), "");
   EXPECT_TRUE(contains(truth.last().pvs, 3));
 
-  EngineHarness wrong(wall(0.0), {}, "slit closed");
+  EngineHarness wrong(wall(0.0), buffer_off(), "slit closed");
   ASSERT_TRUE(wrong.status().ok);
   ASSERT_EQ(wrong.frame(cam, 0.0), "");
   RaySampling sampling;

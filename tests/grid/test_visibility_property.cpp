@@ -66,6 +66,9 @@ SceneOptions random_options(std::uint64_t seed) {
     case 2: opt.tbv_period = rng.uniform(1.0, 30.0); break;
     default: opt.tbv_voxels = rng.uniform(0.5, 8.0); break;
   }
+  // The occlusion buffer off, at the default width, coarser and finer.
+  const int widths[] = {0, 128, 48, 256};
+  opt.occlusion_buffer = widths[rng.uniform_int(0, 3)];
   return opt;
 }
 

@@ -72,8 +72,9 @@ struct SceneOptions {
   /// Width in pixels of the conservative occlusion buffer each frame renders
   /// the objects it finds into and tests voxels, objects and TBVs against
   /// (height from the camera's aspect, square pixels); 0 turns it off.
-  /// 0 or 8..4096 (docs/design.md, "Occlusion buffer").
-  int occlusion_buffer = 0;
+  /// 0 or 8..4096 (docs/design.md, "Occlusion buffer"). The default, 128,
+  /// is the knee of the measured trade-off (docs/performance.md).
+  int occlusion_buffer = 128;
 };
 
 /// Counters of one frame. All counts are for this frame only.
