@@ -364,7 +364,11 @@ bool OcclusionBuffer::render_box(const Vec3& lo, const Vec3& hi) {
       in_r[a] = 1.0 / H[a], out_r[a] = 1.0 / L[a], face[a] = -H[a];
       outside[n_out++] = a;
     } else {
-      out_r[a] = 1.0 / H[a], out_r2[a] = 1.0 / L[a];  // +inf and -inf on a face: leaves at once.
+      // With the eye on a face's plane (H or L exactly 0) a ray heading out
+      // through it leaves at once: +inf and -inf (1 / 0.0 would be +inf
+      // for both, and a ray out through L would seem never to leave).
+      out_r[a] = H[a] > 0.0 ? 1.0 / H[a] : kInf;
+      out_r2[a] = L[a] < 0.0 ? 1.0 / L[a] : -kInf;
       inside[n_in++] = a;
     }
   }

@@ -11,6 +11,7 @@
 
 #include "engine_check.h"
 #include "frustum.h"
+#include "numeric.h"
 #include "occlusion_buffer.h"
 #include "raycast.h"
 #include "scene_impl.h"
@@ -64,6 +65,39 @@ TEST(OcclusionBuffer, BoxPeekingOutByAFractionOfAPixelIsNotHidden) {
   const double peek = (0.2 + 0.1 * 0.02) * 20.0;
   EXPECT_FALSE(ob.hides_world(Vec3(-1, -1, -21), Vec3(peek, 1, -20)));
   EXPECT_FALSE(ob.hides_world(Vec3(-1, -peek, -21), Vec3(1, 1, -20)));
+}
+
+TEST(OcclusionBuffer, EyeOnABoxFacePlaneWritesNoRayHeadingOutThroughIt) {
+  // The eye lies exactly on the plane of the (shrunk) box's low x face,
+  // beside the box: L.x = lo.x + delta - eye.x is exactly 0 in the box's
+  // ray test. Rays heading to x below the eye never enter the box, so the
+  // pixels they cross must stay empty (a reciprocal 1 / 0.0 = +inf for that
+  // face once made such rays seem never to leave the slab).
+  const Vec3 lo(0.0, -10.0, 10.0), hi(10.0, 10.0, 20.0);
+  Camera cam = look_down_z();
+  cam.eye = Vec3(0.0, 0.0, 5.0);
+  const double mag = 5.0 + detail::max_abs(lo) + detail::max_abs(hi);  // As render_box computes it.
+  cam.eye.x = 0.0 + 1e-9 * mag;
+  ASSERT_EQ(detail::max_abs(cam.eye) + detail::max_abs(lo) + detail::max_abs(hi), mag);
+  cam.dir = Vec3(-0.3, 0.0, 1.0);
+  ViewBasis vb;
+  ASSERT_TRUE(make_basis(cam, &vb));
+  constexpr int kWidth = 64;
+  OcclusionBuffer ob = begin(cam, kWidth);
+  ASSERT_TRUE(ob.render_box(lo, hi));  // Rays heading to larger x do hit it.
+  int checked = 0;
+  for (int j = 0; j < ob.height(); ++j)
+    for (int i = 0; i < ob.width(); ++i) {
+      bool away = true;  // Every corner ray heads to x below the eye.
+      for (int c = 0; c < 4; ++c) {
+        const double x = 2.0 * (i + (c & 1)) / ob.width() - 1.0, y = 2.0 * (j + (c >> 1)) / ob.height() - 1.0;
+        away = away && vb.ray_dir(x, y).x < 0.0;
+      }
+      if (!away) continue;
+      ++checked;
+      EXPECT_TRUE(std::isinf(ob.pixel(i, j))) << "pixel " << i << ", " << j << " holds " << ob.pixel(i, j);
+    }
+  EXPECT_GT(checked, kWidth * ob.height() / 2) << "most rays should head away from the box";
 }
 
 TEST(OcclusionBuffer, OccludersCrossingTheNearPlaneOccludeWithTheirFarPart) {
