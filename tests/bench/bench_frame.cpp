@@ -447,7 +447,11 @@ void BM_Viewers(benchmark::State& state, Path which, glm::ivec3 grid, int viewer
   SceneDesc desc = rec.scene;
   if (grid.x > 0) desc.grid = grid;
   std::unique_ptr<Scene> scene;
-  if (const Status st = Scene::create(desc, SceneOptions{}, &scene); !st.ok) {
+  // The buffer off, as in docs/performance.md's table ("One scene, several
+  // viewers"), measured before the buffer became the default.
+  SceneOptions options;
+  options.occlusion_buffer = 0;
+  if (const Status st = Scene::create(desc, options, &scene); !st.ok) {
     state.SkipWithError(("Scene::create: " + st.str()).c_str());
     return;
   }
