@@ -150,14 +150,7 @@ TEST(ConcurrentFrames, AFrameDoesNotWaitForAnotherTraversal) {
   Scene::Impl& s = scene->impl();
   const ViewerId front = scene->add_viewer(), back = scene->add_viewer();
   Scratch scratch;
-  Camera cam;
-  cam.eye = Vec3(3.3, 16.2, 16.1);
-  cam.dir = Vec3(1.0, 0.0, 0.0);
-  cam.up = Vec3(0.0, 1.0, 0.0);
-  cam.fov_y_deg = 70.0;
-  cam.aspect = 1.0;
-  cam.near = 0.05;
-  cam.far = 100.0;
+  const Camera cam = test::camera_along(Vec3(3.3, 16.2, 16.1), Vec3(1.0, 0.0, 0.0), 70.0, 1.0, 0.05, 100.0);
   // Both viewers in front of the wall: every sphere is hidden, unclaimed,
   // and put under a TBV by the frames (nothing holds the lock yet).
   FrameResult r;

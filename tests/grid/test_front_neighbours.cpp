@@ -18,17 +18,7 @@ namespace {
 
 using Ids = std::vector<ObjectId>;
 
-Camera looking(Vec3 eye, Vec3 at, double fov = 70.0) {
-  Camera c;
-  c.eye = eye;
-  c.dir = at - eye;
-  c.up = Vec3(0, 1, 0);
-  c.fov_y_deg = fov;
-  c.aspect = 16.0 / 9.0;
-  c.near = 0.01;
-  c.far = 1000.0;
-  return c;
-}
+Camera looking(Vec3 eye, Vec3 at, double fov = 70.0) { return camera_along(eye, at - eye, fov, 16.0 / 9.0, 0.01); }
 
 bool contains(const Ids& v, ObjectId id) { return std::binary_search(v.begin(), v.end(), id); }
 

@@ -24,15 +24,7 @@ using detail::BufferFault;
 using detail::OcclusionBuffer;
 
 Camera look_down_z(double fov = 60.0, double aspect = 1.0, double near = 0.1) {
-  Camera c;
-  c.eye = Vec3(0.0);
-  c.dir = Vec3(0.0, 0.0, -1.0);
-  c.up = Vec3(0.0, 1.0, 0.0);
-  c.fov_y_deg = fov;
-  c.aspect = aspect;
-  c.near = near;
-  c.far = 1000.0;
-  return c;
+  return camera_along(Vec3(0.0), Vec3(0.0, 0.0, -1.0), fov, aspect, near);
 }
 
 OcclusionBuffer begin(const Camera& c, int width) {

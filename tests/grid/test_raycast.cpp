@@ -15,15 +15,7 @@ namespace voxvis::test {
 namespace {
 
 Camera looking_down_minus_z() {
-  Camera c;
-  c.eye = Vec3(0.0);
-  c.dir = Vec3(0.0, 0.0, -1.0);
-  c.up = Vec3(0.0, 1.0, 0.0);
-  c.fov_y_deg = 60.0;
-  c.aspect = 1.0;
-  c.near = 0.1;
-  c.far = 100.0;
-  return c;
+  return camera_along(Vec3(0.0), Vec3(0.0, 0.0, -1.0), 60.0, 1.0, 0.1, 100.0);
 }
 
 using Ids = std::vector<ObjectId>;

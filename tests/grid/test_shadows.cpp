@@ -41,14 +41,8 @@ TEST(Shadows, PersistAtEveryDistanceBehindAnOccluder) {
   // centre voxel (near its low corner for the odd widths), looking down the
   // axis; every target lies inside the wall's shadow cone, which only widens
   // with distance.
-  Camera cam;
-  cam.eye = Vec3(0.3, kSide / 2 + 0.13, kSide / 2 - 0.07);
-  cam.dir = Vec3(1.0, 0.0, 0.0);
-  cam.up = Vec3(0.0, 1.0, 0.0);
-  cam.fov_y_deg = 60.0;
-  cam.aspect = 16.0 / 9.0;
-  cam.near = 0.05;
-  cam.far = 1000.0;
+  const Camera cam =
+      camera_along(Vec3(0.3, kSide / 2 + 0.13, kSide / 2 - 0.07), Vec3(1.0, 0.0, 0.0), 60.0, 16.0 / 9.0);
   for (int width : {3, 5, 11})
     for (int distance : {6, 17}) {
       const std::string label = "wall " + std::to_string(width) + " at " + std::to_string(distance);

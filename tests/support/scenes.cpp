@@ -366,6 +366,19 @@ SceneDesc transform_scene(const SceneDesc& scene, double scale, const Vec3& offs
   return out;
 }
 
+Camera camera_along(const Vec3& eye, const Vec3& dir, double fov_y_deg, double aspect, double near,
+                    double far) {
+  Camera c;
+  c.eye = eye;
+  c.dir = dir;
+  c.up = Vec3(0.0, 1.0, 0.0);
+  c.fov_y_deg = fov_y_deg;
+  c.aspect = aspect;
+  c.near = near;
+  c.far = far;
+  return c;
+}
+
 Camera transform_camera(const Camera& cam, double scale, const Vec3& offset) {
   Camera out = cam;
   out.eye = cam.eye * scale + offset;

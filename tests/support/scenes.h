@@ -122,6 +122,11 @@ class Mover {
   Rng rng_;
 };
 
+/// A camera at `eye` looking along `dir`, up +y (dir must not be vertical),
+/// with the given lens.
+Camera camera_along(const Vec3& eye, const Vec3& dir, double fov_y_deg = 60.0, double aspect = 1.0,
+                    double near = 0.05, double far = 1000.0);
+
 /// Applies moves (by id) to a copy of the objects. Unknown ids are ignored.
 void apply_moves_to(std::vector<ObjectDesc>* objects, const std::vector<Move>& moves);
 
