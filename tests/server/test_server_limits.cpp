@@ -100,10 +100,23 @@ TEST(ServerLimits, CallsInProgressAreCapped) {
   const Api api = server.api();
   ASSERT_TRUE(api.create_scene_json("w", wall_scene_json()).ok());
   std::vector<std::unique_ptr<ViewStream>> open;
+  // A unary call gives its place back just after its reply reaches the
+  // client, so the scene's creation may still hold one for a moment: a stream
+  // refused then is tried again.
   for (int i = 0; i < 3; ++i) {
-    open.push_back(std::make_unique<ViewStream>(api, "w"));
-    v1::ViewResponse r;
-    ASSERT_TRUE(open.back()->frame(1, 0.0, wall_camera(), &r)) << "stream " << i;
+    ASSERT_TRUE(wait_until(
+        [&] {
+          auto stream = std::make_unique<ViewStream>(api, "w");
+          v1::ViewResponse r;
+          if (!stream->frame(1, 0.0, wall_camera(), &r)) {
+            stream->finish();
+            return false;
+          }
+          open.push_back(std::move(stream));
+          return true;
+        },
+        Seconds(10)))
+        << "stream " << i;
   }
   v1::GetPvsResponse pvs;
   grpc::Status s = api.get_pvs("w", 0.0, wall_camera(), &pvs);
