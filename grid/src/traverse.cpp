@@ -242,6 +242,7 @@ class Traversal {
   Range required(int b, std::int64_t vb, double t0, double t1, std::int64_t k,
                  bool* whole = nullptr) const;
   bool occluded_at(const std::int64_t v[3], std::int64_t j) const;
+  bool occluded_further_back(const std::int64_t v[3], std::int64_t m) const;
   Range frustum_rect_axis(int a, std::int64_t la, int b, bool* any) const;
   Range row_in_pyramid(int a, std::int64_t la, int b, int d, std::int64_t vd, std::int64_t b0,
                        std::int64_t b1) const;
@@ -277,6 +278,7 @@ class Traversal {
   double depth_tol_ = 0.0;  ///< World units.
   Vec3 vs_{1.0};            ///< Voxel size, world units.
   bool ob_on_ = false;
+  bool deep_ = false;  ///< SceneOptions::deep_shells, buffer off.
   bool has_dyn_ = false;
   ExitTable prev_, half_;  ///< Exits on shell m-1 and on shell m/2.
   IBox face_live_[6]{};
@@ -364,6 +366,45 @@ bool Traversal::occluded_at(const std::int64_t v[3], std::int64_t j) const {
       }
   }
   return any;  // No exit voxel found at all: cannot prove anything.
+}
+
+bool Traversal::occluded_further_back(const std::int64_t v[3], std::int64_t m) const {
+  // Off the axes a shadow's edge moves across the shells, and the previous
+  // shell's test, which needs every voxel v's projection meets (two or three
+  // across where rays cross voxel boundaries at an angle), loses up to a
+  // voxel of it per shell: the shadow of a small occluder dies within a few
+  // shells. One test against shell j loses at most that voxel once, however
+  // far j is, so shells m-2, m-4, m-8, ... reach back to the occluder in a
+  // few hops (each is the argument of docs/design.md for another earlier
+  // shell, as conservative). A shell is tried only when the voxel where the
+  // ray through v's centre leaves C_j blocks: that voxel is among those the
+  // full test needs, so the test could not succeed otherwise.
+  const Vec3 r{static_cast<double>(v[0]) + 0.5 - lf_.e.x, static_cast<double>(v[1]) + 0.5 - lf_.e.y,
+               static_cast<double>(v[2]) + 0.5 - lf_.e.z};
+  for (std::int64_t step = 2; step < m; step *= 2) {
+    const std::int64_t j = m - step;
+    if (j == m / 2) continue;  // Tested already.
+    // The centre ray leaves C_j = [-j, j+1]^3 through the face it reaches first.
+    double t = std::numeric_limits<double>::infinity();
+    int k = 0;
+    for (int ax = 0; ax < 3; ++ax) {
+      if (r[ax] == 0.0) continue;
+      const double bound = r[ax] > 0.0 ? static_cast<double>(j + 1) : static_cast<double>(-j);
+      const double tk = (bound - lf_.e[ax]) / r[ax];
+      if (tk < t) {
+        t = tk;
+        k = ax;
+      }
+    }
+    std::int64_t u[3];
+    for (int ax = 0; ax < 3; ++ax) {
+      const double q = std::floor(lf_.e[ax] + r[ax] * t);
+      u[ax] = std::clamp(static_cast<std::int64_t>(q), -j, j);
+    }
+    u[k] = r[k] > 0.0 ? j : -j;
+    if (blocks(u) && occluded_at(v, j)) return true;
+  }
+  return false;
 }
 
 Range Traversal::frustum_rect_axis(int a, std::int64_t la, int b, bool* any) const {
@@ -592,6 +633,12 @@ void Traversal::visit_row(int face, int a, int b, int d, std::int64_t la, std::i
       ++st_.ob_voxels_culled;
       continue;
     }
+    // With the occlusion buffer on, occluders drawn into it keep their
+    // shadows at every distance, and this test measured as cost alone.
+    if (deep_ && m >= 3 && occluded_further_back(v, m)) {
+      stamp = static_cast<std::uint8_t>(tag_ | kBlocked);
+      continue;
+    }
     bool blocking = false;
     if (flags & (Scene::Impl::kStaticOpaque | Scene::Impl::kDynOpaque)) {
       // An opaque voxel occludes only when wholly beyond the near plane:
@@ -661,6 +708,7 @@ void Traversal::run() {
   depth_tol_ = 4.0 * tol_ * vmax + 1e-9 * world_scale;
   vs_ = g.voxel_size;
   ob_on_ = w_.ob.on();
+  deep_ = s_.options.deep_shells && !ob_on_;
 
   std::int64_t k0 = 0, kmax = 0;
   for (int a = 0; a < 3; ++a) {
