@@ -69,6 +69,8 @@ SceneOptions random_options(std::uint64_t seed) {
   // The occlusion buffer off, at the default width, coarser and finer.
   const int widths[] = {0, 128, 48, 256};
   opt.occlusion_buffer = widths[rng.uniform_int(0, 3)];
+  // Deep shells (used with the buffer off) on half the seeds.
+  opt.deep_shells = rng.uniform_int(0, 1) == 1;
   return opt;
 }
 
