@@ -8,6 +8,7 @@ VOXVIS_PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc grpc-proto prometheus-cpp-dev
   openssl
+  libegl-dev libopengl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri
 )
 
 voxvis_ensure_deps() {

@@ -1,0 +1,126 @@
+// voxvis/render.h — the headless renderer: an OpenGL 4.x core context through
+// EGL with no window system (the EGL device platform first, Mesa's surfaceless
+// platform as the fallback), and the exactly visible set of a frame at pixel
+// level, for `voxvis verify`, the server's verify mode and the accuracy report.
+//
+// Definition of "visible" used here (docs/verify.md): an object is visible at
+// W x H when it is the first object hit by the ray through the centre of some
+// pixel, with the conventions of the CPU ray caster of the tests: objects are
+// solids (closed balls and axis-aligned boxes, drawn exactly, not tessellated),
+// each ray's hits are clipped to [near, far] (an object that contains the eye
+// is hit at depth `near`), pixel (i, j) samples the image point
+// x = -1 + (2i+1)/W, y = -1 + (2j+1)/H. Depths are computed in single
+// precision relative to the eye, so objects entered at depths within about
+// 1e-6 of each other may be told apart differently from a double-precision
+// caster (ties), and an object that covers no pixel centre is not visible at
+// that resolution however close it comes.
+//
+// A Renderer owns its context; the EGL display under it is initialised once
+// and kept for the life of the process. A Renderer may be created on one
+// thread and used on another, but by one thread at a time: every call makes
+// its context current on the calling thread.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "voxvis/types.h"
+
+namespace voxvis::render {
+
+/// Which EGL platform provides the display.
+enum class Platform {
+  Auto,         ///< The device platform, else surfaceless.
+  Device,       ///< EGL_EXT_platform_device: a GPU, or Mesa's software device.
+  Surfaceless,  ///< EGL_MESA_platform_surfaceless.
+};
+
+/// "auto", "device" or "surfaceless"; on error sets `message`.
+bool parse_platform(const std::string& text, Platform* out, std::string* message);
+const char* platform_name(Platform p);
+
+struct ContextOptions {
+  Platform platform = Platform::Auto;
+  /// EGL device index on the device platform; -1: the first device that is
+  /// not a software renderer, else the software one.
+  int device = -1;
+};
+
+/// What the context runs on.
+struct ContextInfo {
+  Platform platform = Platform::Device;  ///< The one chosen (never Auto).
+  int device = -1;                       ///< Index of the EGL device; -1 on surfaceless.
+  int devices = 0;                       ///< EGL devices found.
+  bool software = false;                 ///< Mesa's software device (llvmpipe).
+  std::string gl_renderer;               ///< GL_RENDERER, e.g. "llvmpipe (LLVM 15.0.6, 256 bits)".
+  std::string gl_version;                ///< GL_VERSION.
+  int max_size = 0;                      ///< Largest width or height a frame may have, pixels.
+  std::string summary() const;           ///< One line for logs.
+};
+
+/// How the visible set is read from the GPU.
+enum class Method {
+  /// One pass draws every object in the frustum into an id buffer, read back
+  /// once: the first hit at every pixel centre (one object per pixel on a
+  /// depth tie, the first drawn in id order).
+  Ids,
+  /// A depth pass of every object in the frustum, then one
+  /// GL_ANY_SAMPLES_PASSED query per candidate (all issued before any result
+  /// is read): a candidate is visible when some pixel centre's first-hit
+  /// depth equals its own (every object of a depth tie).
+  Queries,
+};
+
+bool parse_method(const std::string& text, Method* out, std::string* message);
+const char* method_name(Method m);
+
+struct VisibleOptions {
+  int width = 640;
+  int height = 360;
+  Method method = Method::Ids;
+};
+
+/// Costs of one call, wall-clock milliseconds on the calling thread.
+struct VisibleStats {
+  std::uint32_t in_frustum = 0;  ///< Objects the CPU's frustum test kept and drew.
+  std::uint32_t queries = 0;     ///< Occlusion queries issued (Method::Queries).
+  double upload_ms = 0.0;        ///< Frustum test and instance upload.
+  double draw_ms = 0.0;          ///< Issuing the depth/id pass.
+  double query_ms = 0.0;         ///< Issuing the queries.
+  double read_ms = 0.0;          ///< Waiting for and reading the results.
+};
+
+class Renderer {
+ public:
+  /// Creates a context and its framebuffer resources. On failure returns
+  /// null and sets `error` to what is missing (no EGL implementation, no
+  /// device, no OpenGL 4.2 core context, ...).
+  static std::unique_ptr<Renderer> create(const ContextOptions& options, std::string* error);
+  ~Renderer();
+  Renderer(const Renderer&) = delete;
+  Renderer& operator=(const Renderer&) = delete;
+
+  const ContextInfo& info() const;
+
+  /// The ids of the objects visible under `cam` at the options' resolution,
+  /// ascending. `candidates` (ascending ids; null: every object) limits which
+  /// objects are reported; every object is drawn as an occluder either way.
+  /// Returns false and sets `error` for a camera that defines no frustum, a
+  /// resolution below 1 or above info().max_size, or a GL failure.
+  bool visible(const std::vector<ObjectDesc>& objects, const Camera& cam, const VisibleOptions& options,
+               const std::vector<ObjectId>* candidates, std::vector<ObjectId>* out,
+               VisibleStats* stats, std::string* error);
+
+  /// The id at every pixel of the last Method::Ids call (row 0 at the bottom,
+  /// 0 where no object is hit), width * height values.
+  const std::vector<ObjectId>& last_ids() const;
+
+ private:
+  struct Impl;
+  explicit Renderer(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace voxvis::render
