@@ -5,10 +5,12 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 
 #include "voxvis/format.h"
+#include "voxvis/scene.h"
 
 namespace voxvis::cli {
 
@@ -20,17 +22,54 @@ inline constexpr int kExitError = 2;     ///< Bad input, bad arguments, I/O fail
 /// Prints "voxvis: error: <error.str()>" on stderr and returns kExitError.
 int report(const FormatError& error);
 
-struct ReplayArgs {
-  std::string scene;   ///< voxvis-scene/1 file.
-  std::string frames;  ///< Frames file, JSON Lines.
-  std::string grid;    ///< "NX,NY,NZ" overriding the scene's grid; empty: keep.
-  std::string out;     ///< Output file; empty: stdout.
+/// The scene and engine options of the commands that run the engine
+/// (`replay`, `verify`).
+struct EngineArgs {
+  std::string scene;  ///< voxvis-scene/1 file.
+  std::string grid;   ///< "NX,NY,NZ" overriding the scene's grid; empty: keep.
   std::optional<double> tbv_period;  ///< Seconds; empty: engine default.
   int occlusion_buffer = 128;        ///< Occlusion buffer width, pixels; 0: off.
+};
+
+/// Reads and parses the scene file and applies the options (--grid,
+/// --tbv-period, --occlusion-buffer). On error reports it, sets `*exit_code`
+/// and returns false. `text` keeps the file for build_scene's messages.
+bool load_scene(const EngineArgs& args, std::string* text, SceneDesc* desc, SceneOptions* options,
+                int* exit_code);
+
+/// Builds the engine's scene; errors name the scene file's line where one
+/// applies. Frees `text` on success.
+bool build_scene(const EngineArgs& args, std::string* text, const SceneDesc& desc, const SceneOptions& options,
+                 std::unique_ptr<Scene>* scene, int* exit_code);
+
+struct ReplayArgs {
+  EngineArgs engine;
+  std::string frames;  ///< Frames file, JSON Lines.
+  std::string out;     ///< Output file; empty: stdout.
   bool quiet = false;
 };
 
 int run_replay(const ReplayArgs& args);
+
+struct VerifyArgs {
+  EngineArgs engine;
+  std::string frames;      ///< Frames file, JSON Lines.
+  std::string pvs;         ///< PVS lines to check (`voxvis replay` output); empty: run the engine.
+  std::string out;         ///< Output file; empty: stdout.
+  std::string resolution = "640x360";  ///< WxH.
+  std::string method = "ids";          ///< ids | queries.
+  bool full = false;       ///< Queries: probe every object in the frustum, not only the PVS.
+  std::int64_t first_frame = 0;
+  std::int64_t frame_count = -1;  ///< -1: to the end.
+  std::string egl_platform = "auto";
+  int egl_device = -1;
+  bool quiet = false;
+};
+
+/// Exit status of `verify` when some visible object was missing from a PVS.
+inline constexpr int kExitMissed = 3;
+
+int run_verify(const VerifyArgs& args);
 
 struct GenerateArgs {
   std::string preset = "paper";

@@ -47,13 +47,14 @@ int run(int argc, char** argv) {
       "Examples:\n"
       "  voxvis generate --preset paper --scene-out scene.json --frames-out frames.jsonl\n"
       "  voxvis replay --scene scene.json --frames frames.jsonl --out pvs.jsonl\n"
+      "  voxvis verify --scene scene.json --frames frames.jsonl --pvs pvs.jsonl --resolution 640x360\n"
       "  voxvis load --server 127.0.0.1:50051 --scene scene.json --id paper\n"
       "  voxvis view --scene paper --frames frames.jsonl --out pvs.jsonl\n"
       "  voxvis loadgen --scene paper --viewers 500 --rate 60 --duration 30\n"
       "\n"
       "Exit status: 0 success, 2 invalid input or arguments (the message names\n"
       "file:line: field) or an error from the server (its code and message),\n"
-      "1 internal error.");
+      "1 internal error, 3 (verify) a visible object missing from a PVS.");
   app.failure_message([](const CLI::App* /*app*/, const CLI::Error& e) {
     return std::string("voxvis: error: ") + e.what() + "\nRun with --help for more information.\n";
   });
@@ -64,14 +65,14 @@ int run(int argc, char** argv) {
   CLI::App* replay_cmd = app.add_subcommand(
       "replay",
       "Replay a frames file against a scene and write one PVS line per frame.");
-  replay_cmd->add_option("--scene", replay.scene, "Scene file (JSON, format voxvis-scene/1)")
+  replay_cmd->add_option("--scene", replay.engine.scene, "Scene file (JSON, format voxvis-scene/1)")
       ->required()
       ->type_name("FILE");
   replay_cmd->add_option("--frames", replay.frames,
                          "Frames file (JSON Lines: one camera and optional moves per line)")
       ->required()
       ->type_name("FILE");
-  replay_cmd->add_option("--grid", replay.grid,
+  replay_cmd->add_option("--grid", replay.engine.grid,
                          "Grid resolution overriding the scene's, voxels per axis (e.g. 64,32,64)")
       ->type_name("NX,NY,NZ");
   replay_cmd->add_option("--out", replay.out,
@@ -81,7 +82,7 @@ int run(int argc, char** argv) {
       "--tbv-period", tbv_period,
       "Fixed validity period of temporal bounding volumes, seconds (default: adaptive)")
       ->type_name("SECONDS");
-  replay_cmd->add_option("--occlusion-buffer", replay.occlusion_buffer,
+  replay_cmd->add_option("--occlusion-buffer", replay.engine.occlusion_buffer,
                          "Width in pixels of the conservative occlusion buffer (8..4096, "
                          "or 0: off; default 128)")
       ->type_name("PIXELS");
@@ -89,6 +90,57 @@ int run(int argc, char** argv) {
   replay_cmd->footer(
       "Output: one line per frame, {\"frame\", \"pvs\", \"wake\", \"stats\"}; ids ascending.\n"
       "Progress (on a terminal) and a timing summary go to stderr unless --quiet.");
+
+  // voxvis verify
+  voxvis::cli::VerifyArgs verify;
+  double verify_tbv = -1.0;
+  CLI::App* verify_cmd = app.add_subcommand(
+      "verify",
+      "Render every frame headlessly (EGL) and report the visible objects missing from its PVS.");
+  verify_cmd->add_option("--scene", verify.engine.scene, "Scene file (JSON, format voxvis-scene/1)")
+      ->required()
+      ->type_name("FILE");
+  verify_cmd->add_option("--frames", verify.frames, "Frames file (JSON Lines), as for replay")
+      ->required()
+      ->type_name("FILE");
+  verify_cmd->add_option("--pvs", verify.pvs,
+                         "PVS lines to check (replay's or view's output); default: run the engine")
+      ->type_name("FILE");
+  verify_cmd->add_option("--out", verify.out, "Output file (JSON Lines); default stdout")->type_name("FILE");
+  verify_cmd->add_option("--resolution", verify.resolution, "Pixels of the rendered frames")
+      ->type_name("WxH")
+      ->capture_default_str();
+  verify_cmd->add_option("--method", verify.method,
+                         "ids: one id buffer read back; queries: one occlusion query per object")
+      ->type_name("ids|queries")
+      ->capture_default_str();
+  verify_cmd->add_flag("--full", verify.full,
+                       "With --method queries, probe every object in the frustum, so that misses are "
+                       "caught (the id buffer always sees them all)");
+  verify_cmd->add_option("--first-frame", verify.first_frame, "First frame to verify (0-based)")
+      ->type_name("N")
+      ->capture_default_str();
+  verify_cmd->add_option("--frame-count", verify.frame_count, "Frames to verify; -1: to the end")
+      ->type_name("N")
+      ->capture_default_str();
+  verify_cmd->add_option("--egl-platform", verify.egl_platform, "EGL platform: auto, device or surfaceless")
+      ->type_name("NAME")
+      ->capture_default_str();
+  verify_cmd->add_option("--egl-device", verify.egl_device,
+                         "EGL device index (device platform); default: a GPU if any, else the software one")
+      ->type_name("N");
+  verify_cmd->add_option("--grid", verify.engine.grid, "Grid resolution for the engine, as for replay")
+      ->type_name("NX,NY,NZ");
+  CLI::Option* verify_tbv_opt =
+      verify_cmd->add_option("--tbv-period", verify_tbv, "TBV period for the engine, as for replay")
+          ->type_name("SECONDS");
+  verify_cmd->add_option("--occlusion-buffer", verify.engine.occlusion_buffer,
+                         "Occlusion buffer width for the engine, as for replay (0: off; default 128)")
+      ->type_name("PIXELS");
+  verify_cmd->add_flag("-q,--quiet", verify.quiet, "No progress, miss lines or summary on stderr");
+  verify_cmd->footer(
+      "Output: one line per frame, {\"frame\", \"visible\", \"missed\", \"pvs_size\", \"stats\"}.\n"
+      "Exit status 3 when any visible object was missing from a PVS (docs/verify.md).");
 
   // voxvis generate
   voxvis::cli::GenerateArgs gen;
@@ -228,15 +280,22 @@ int run(int argc, char** argv) {
     return code == 0 ? kExitOk : kExitError;
   }
 
+  // --tbv-period, when given: 0 (adaptive) or at least a millisecond.
+  const auto take_tbv = [](const CLI::Option* opt, double value, voxvis::cli::EngineArgs* engine) {
+    if (opt->count() == 0) return true;
+    if (!std::isfinite(value) || !(value == 0.0 || value >= 1e-3)) return false;
+    engine->tbv_period = value;
+    return true;
+  };
+  const voxvis::FormatError bad_tbv{"", 0, "--tbv-period",
+                                    "must be 0 (adaptive) or a finite number of seconds >= 0.001"};
   if (replay_cmd->parsed()) {
-    if (tbv_opt->count() > 0) {
-      if (!std::isfinite(tbv_period) || !(tbv_period == 0.0 || tbv_period >= 1e-3)) {
-        return voxvis::cli::report(voxvis::FormatError{
-            "", 0, "--tbv-period", "must be 0 (adaptive) or a finite number of seconds >= 0.001"});
-      }
-      replay.tbv_period = tbv_period;
-    }
+    if (!take_tbv(tbv_opt, tbv_period, &replay.engine)) return voxvis::cli::report(bad_tbv);
     return voxvis::cli::run_replay(replay);
+  }
+  if (verify_cmd->parsed()) {
+    if (!take_tbv(verify_tbv_opt, verify_tbv, &verify.engine)) return voxvis::cli::report(bad_tbv);
+    return voxvis::cli::run_verify(verify);
   }
   if (gen_cmd->parsed()) return voxvis::cli::run_generate(gen);
   if (load_cmd->parsed()) return voxvis::cli::run_load(load);

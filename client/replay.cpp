@@ -62,25 +62,55 @@ bool parse_grid_arg(const std::string& text, int max_per_axis, int out[3], std::
   return true;
 }
 
-int run_replay(const ReplayArgs& args) {
-  // The scene: parse, apply --grid, build.
-  std::string text;
+bool load_scene(const EngineArgs& args, std::string* text, SceneDesc* desc, SceneOptions* options,
+                int* exit_code) {
   FormatError error;
-  if (!read_file(args.scene, &text, &error)) return report(error);
-  SceneDesc desc;
-  if (!parse_scene(text, args.scene, &desc, &error)) return report(error);
-
-  SceneOptions options;
-  if (args.tbv_period) options.tbv_period = *args.tbv_period;
-  options.occlusion_buffer = args.occlusion_buffer;
+  if (!read_file(args.scene, text, &error) || !parse_scene(*text, args.scene, desc, &error)) {
+    *exit_code = report(error);
+    return false;
+  }
+  if (args.tbv_period) options->tbv_period = *args.tbv_period;
+  options->occlusion_buffer = args.occlusion_buffer;
   if (!args.grid.empty()) {
     int res[3] = {0, 0, 0};
     std::string message;
-    if (!parse_grid_arg(args.grid, options.max_resolution, res, &message)) {
-      return report(FormatError{"", 0, "--grid", message});
+    if (!parse_grid_arg(args.grid, options->max_resolution, res, &message)) {
+      *exit_code = report(FormatError{"", 0, "--grid", message});
+      return false;
     }
-    desc.grid = glm::ivec3(res[0], res[1], res[2]);
+    desc->grid = glm::ivec3(res[0], res[1], res[2]);
   }
+  return true;
+}
+
+bool build_scene(const EngineArgs& args, std::string* text, const SceneDesc& desc, const SceneOptions& options,
+                 std::unique_ptr<Scene>* scene, int* exit_code) {
+  if (const Status st = Scene::create(desc, options, scene); !st.ok) {
+    std::string what = st.message;
+    if (!args.grid.empty() && st.field.rfind("grid", 0) == 0) what += " (resolution from --grid)";
+    // A --grid resolution has no line in the scene file.
+    const bool from_flag = (!args.grid.empty() && st.field.rfind("grid", 0) == 0) ||
+                           st.field == "occlusion_buffer";
+    const int line = from_flag || st.field.empty() ? 0 : scene_field_line(*text, st.field);
+    *exit_code = report(FormatError{args.scene, line, st.field, what});
+    return false;
+  }
+  if (*scene == nullptr) {
+    *exit_code = report(FormatError{args.scene, 0, "", "scene creation failed"});
+    return false;
+  }
+  text->clear();  // Kept until now so that engine errors can name a line.
+  text->shrink_to_fit();
+  return true;
+}
+
+int run_replay(const ReplayArgs& args) {
+  // The scene: parse, apply --grid, build.
+  std::string text;
+  SceneDesc desc;
+  SceneOptions options;
+  int code = kExitOk;
+  if (!load_scene(args.engine, &text, &desc, &options, &code)) return code;
   // Open the frames and the output before the (possibly slow) scene build,
   // so that a bad path fails at once.
   std::ifstream frames(args.frames, std::ios::binary);
@@ -92,19 +122,9 @@ int run_replay(const ReplayArgs& args) {
   if (!out.open(args.out, &message)) return report(FormatError{args.out, 0, "", message});
 
   std::unique_ptr<Scene> scene;
-  if (const Status st = Scene::create(desc, options, &scene); !st.ok) {
-    std::string what = st.message;
-    if (!args.grid.empty() && st.field.rfind("grid", 0) == 0) what += " (resolution from --grid)";
-    // A --grid resolution has no line in the scene file.
-    const bool from_flag = (!args.grid.empty() && st.field.rfind("grid", 0) == 0) ||
-                           st.field == "occlusion_buffer";
-    const int line = from_flag || st.field.empty() ? 0 : scene_field_line(text, st.field);
-    return report(FormatError{args.scene, line, st.field, what});
-  }
-  if (scene == nullptr) return report(FormatError{args.scene, 0, "", "scene creation failed"});
-  text.clear();  // Kept until now so that engine errors can name a line.
-  text.shrink_to_fit();
+  if (!build_scene(args.engine, &text, desc, options, &scene, &code)) return code;
   const ViewerId viewer = scene->add_viewer();
+  FormatError error;
 
   Scratch scratch;
   FrameInput frame;

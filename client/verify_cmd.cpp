@@ -1,0 +1,297 @@
+// verify_cmd.cpp — `voxvis verify`: renders every frame headlessly (render/),
+// takes the objects that show at pixel level, and reports each one missing
+// from the frame's PVS (the engine's, or a PVS file's).
+#include <algorithm>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <memory>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include <unistd.h>
+
+#include <nlohmann/json.hpp>
+
+#include "cli.h"
+#include "common.h"
+#include "output_file.h"
+#include "voxvis/format.h"
+#include "voxvis/render.h"
+#include "voxvis/scene.h"
+
+namespace voxvis::cli {
+namespace {
+
+bool parse_resolution(const std::string& text, int* w, int* h, std::string* message) {
+  const std::size_t x = text.find('x');
+  auto number = [](const std::string& s, int* v) {
+    if (s.empty() || s.size() > 9 || s.find_first_not_of("0123456789") != std::string::npos) return false;
+    *v = std::stoi(s);
+    return true;
+  };
+  if (x == std::string::npos || !number(text.substr(0, x), w) || !number(text.substr(x + 1), h)) {
+    *message = "expected WIDTHxHEIGHT in pixels (for example 640x360), got '" + text + "'";
+    return false;
+  }
+  if (*w < 1 || *h < 1) {
+    *message = "width and height must be >= 1, got '" + text + "'";
+    return false;
+  }
+  return true;
+}
+
+/// The PVS lines of a recording, read one per frame as the frames are.
+class PvsReader {
+ public:
+  bool open(const std::string& path, std::string* message) {
+    path_ = path;
+    in_.open(path, std::ios::binary);
+    if (!in_) {
+      *message = path + ": cannot open: " + std::strerror(errno);
+      return false;
+    }
+    return true;
+  }
+  /// The PVS of frame `index` (ascending ids), checked against the scene's ids.
+  bool next(std::size_t index, const std::unordered_map<ObjectId, std::size_t>& known, std::vector<ObjectId>* pvs,
+            std::string* message) {
+    std::string line;
+    while (std::getline(in_, line)) {
+      ++line_no_;
+      if (blank(line)) continue;
+      const std::string where = path_ + ":" + std::to_string(line_no_);
+      const nlohmann::json j = nlohmann::json::parse(line, nullptr, false);
+      if (j.is_discarded() || !j.is_object()) {
+        *message = where + ": not a JSON object";
+        return false;
+      }
+      if (!j.contains("frame") || !j["frame"].is_number_unsigned() || j["frame"].get<std::uint64_t>() != index) {
+        *message = where + ": frame: expected " + std::to_string(index) +
+                   " (one line per frame of the frames file, in order)";
+        return false;
+      }
+      if (!j.contains("pvs") || !j["pvs"].is_array()) {
+        *message = where + ": pvs: missing or not an array";
+        return false;
+      }
+      pvs->clear();
+      for (const auto& v : j["pvs"]) {
+        if (!v.is_number_unsigned() || v.get<std::uint64_t>() > 0xffffffffu) {
+          *message = where + ": pvs: " + v.dump() + " is not an object id";
+          return false;
+        }
+        const auto id = static_cast<ObjectId>(v.get<std::uint64_t>());
+        if (!known.count(id)) {
+          *message = where + ": pvs: id " + std::to_string(id) + " is not an object of the scene";
+          return false;
+        }
+        pvs->push_back(id);
+      }
+      std::sort(pvs->begin(), pvs->end());
+      pvs->erase(std::unique(pvs->begin(), pvs->end()), pvs->end());
+      return true;
+    }
+    if (in_.bad()) {
+      *message = path_ + ": cannot read: " + std::strerror(errno);
+      return false;
+    }
+    *message = path_ + ": has no line for frame " + std::to_string(index) + " (" + std::to_string(index) +
+               " PVS lines for more frames)";
+    return false;
+  }
+  /// Whether only blank lines remain.
+  bool at_end() {
+    std::string line;
+    while (std::getline(in_, line)) {
+      ++line_no_;
+      if (!blank(line)) return false;
+    }
+    return true;
+  }
+  int line() const { return line_no_; }
+
+ private:
+  std::string path_;
+  std::ifstream in_;
+  int line_no_ = 0;
+};
+
+std::string json_ids(const std::vector<ObjectId>& ids) {
+  std::string s = "[";
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    if (i) s += ',';
+    s += std::to_string(ids[i]);
+  }
+  return s + "]";
+}
+
+std::string ms(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3f", v);
+  return buf;
+}
+
+}  // namespace
+
+int run_verify(const VerifyArgs& args) {
+  int w = 0, h = 0;
+  std::string message;
+  if (!parse_resolution(args.resolution, &w, &h, &message)) return report(FormatError{"", 0, "--resolution", message});
+  render::Method method;
+  if (!render::parse_method(args.method, &method, &message)) return report(FormatError{"", 0, "--method", message});
+  render::ContextOptions ctx;
+  if (!render::parse_platform(args.egl_platform, &ctx.platform, &message))
+    return report(FormatError{"", 0, "--egl-platform", message});
+  if (args.egl_device < -1) return report(FormatError{"", 0, "--egl-device", "must be >= 0"});
+  ctx.device = args.egl_device;
+  if (args.first_frame < 0) return report(FormatError{"", 0, "--first-frame", "must be >= 0"});
+  if (args.frame_count < -1) return report(FormatError{"", 0, "--frame-count", "must be >= 0"});
+
+  std::string text;
+  SceneDesc desc;
+  SceneOptions options;
+  int code = kExitOk;
+  if (!load_scene(args.engine, &text, &desc, &options, &code)) return code;
+  std::unordered_map<ObjectId, std::size_t> slot;  // id -> index in objects
+  std::vector<ObjectDesc> objects = desc.objects;
+  for (std::size_t i = 0; i < objects.size(); ++i) slot[objects[i].id] = i;
+
+  std::ifstream frames(args.frames, std::ios::binary);
+  if (!frames) return report(FormatError{args.frames, 0, "", std::string("cannot open: ") + std::strerror(errno)});
+  PvsReader pvs_in;
+  if (!args.pvs.empty() && !pvs_in.open(args.pvs, &message)) return report_message(message);
+  OutputFile out;
+  if (!out.open(args.out, &message)) return report(FormatError{args.out, 0, "", message});
+
+  // The renderer before the engine: a machine without EGL fails at once.
+  std::unique_ptr<render::Renderer> renderer = render::Renderer::create(ctx, &message);
+  if (!renderer) return report_message("EGL: " + message);
+  if (w > renderer->info().max_size || h > renderer->info().max_size)
+    return report(FormatError{"", 0, "--resolution",
+                              args.resolution + " exceeds this OpenGL's limit of " +
+                                  std::to_string(renderer->info().max_size) + " pixels a side"});
+
+  std::unique_ptr<Scene> scene;
+  ViewerId viewer = 0;
+  if (args.pvs.empty()) {
+    if (!build_scene(args.engine, &text, desc, options, &scene, &code)) return code;
+    viewer = scene->add_viewer();
+  }
+  const bool checks_all = method == render::Method::Ids || args.full;
+  if (!args.quiet) {
+    std::fprintf(stderr, "voxvis: verifying at %dx%d by %s on %s%s\n", w, h, render::method_name(method),
+                 renderer->info().summary().c_str(),
+                 checks_all ? "" : "; only the PVS is probed, misses are not checked (add --full)");
+  }
+
+  const std::int64_t first = args.first_frame;
+  const std::int64_t end = args.frame_count < 0 ? INT64_MAX : first + args.frame_count;
+  Scratch scratch;
+  FrameInput frame;
+  FrameResult result;
+  FormatError error;
+  std::vector<ObjectId> pvs, vis, missed;
+  render::VisibleStats rs;
+  std::vector<double> draw_ms, read_ms, query_ms;
+  std::uint64_t total_visible = 0, total_pvs = 0, total_missed = 0, frames_missed = 0, verified = 0;
+  std::int64_t index = 0;
+  int line_no = 0;
+  std::string line, out_line;
+  Progress progress(!args.quiet && ::isatty(STDERR_FILENO) != 0);
+
+  auto fail = [&](int status) {
+    progress.finish();
+    return status;
+  };
+  while (index < end && std::getline(frames, line)) {
+    ++line_no;
+    if (blank(line)) continue;
+    if (!parse_frame_line(line, args.frames, line_no, &frame, &error)) return fail(report(error));
+    for (const Move& mv : frame.moves) {
+      const auto it = slot.find(mv.id);
+      if (it != slot.end()) objects[it->second].center = mv.center;
+    }
+    // The PVS: the engine runs every frame (its state depends on the frames
+    // before), a PVS file is read line by line; both only kept in the slice.
+    if (scene) {
+      if (!frame.moves.empty()) {
+        MoveReport moves;
+        if (const Status st = scene->apply_moves(frame.t, frame.moves, &moves); !st.ok)
+          return fail(report(FormatError{args.frames, line_no, st.field, st.message}));
+      }
+      if (const Status st = scene->frame(viewer, frame.camera, frame.t, scratch, &result); !st.ok)
+        return fail(report(FormatError{args.frames, line_no, st.field, st.message}));
+      pvs = result.pvs;
+    } else if (!pvs_in.next(static_cast<std::size_t>(index), slot, &pvs, &message)) {
+      return fail(report_message(message));
+    }
+    if (index < first) {
+      ++index;
+      continue;
+    }
+    render::VisibleOptions vo{w, h, method};
+    if (!renderer->visible(objects, frame.camera, vo, checks_all ? nullptr : &pvs, &vis, &rs, &message))
+      return fail(report(FormatError{args.frames, line_no, "", message}));
+    missed.clear();
+    std::set_difference(vis.begin(), vis.end(), pvs.begin(), pvs.end(), std::back_inserter(missed));
+    out_line = "{\"frame\":" + std::to_string(index) + ",\"visible\":" + json_ids(vis) +
+               ",\"missed\":" + json_ids(missed) + ",\"pvs_size\":" + std::to_string(pvs.size()) +
+               ",\"stats\":{\"in_frustum\":" + std::to_string(rs.in_frustum) +
+               ",\"queries\":" + std::to_string(rs.queries) + ",\"upload_ms\":" + ms(rs.upload_ms) +
+               ",\"draw_ms\":" + ms(rs.draw_ms) + ",\"query_ms\":" + ms(rs.query_ms) +
+               ",\"read_ms\":" + ms(rs.read_ms) + "}}\n";
+    if (!out.write(out_line))
+      return fail(report(FormatError{out.path(), 0, "", std::string("cannot write: ") + std::strerror(errno)}));
+    if (!missed.empty() && !args.quiet) {
+      progress.finish();
+      std::fprintf(stderr, "voxvis: MISS: frame %lld (%s:%d): %zu visible object(s) not in the PVS: %s\n",
+                   static_cast<long long>(index), args.frames.c_str(), line_no, missed.size(),
+                   json_ids(missed).c_str());
+    }
+    total_visible += vis.size();
+    total_pvs += pvs.size();
+    total_missed += missed.size();
+    frames_missed += missed.empty() ? 0 : 1;
+    draw_ms.push_back(rs.draw_ms);
+    read_ms.push_back(rs.read_ms);
+    query_ms.push_back(rs.query_ms);
+    ++verified;
+    ++index;
+    progress.update(static_cast<std::size_t>(verified));
+  }
+  if (frames.bad()) return fail(report(FormatError{args.frames, line_no, "", std::string("cannot read: ") + std::strerror(errno)}));
+  progress.finish();
+  if (args.frame_count > 0 && index < end) {
+    return report(FormatError{args.frames, 0, "--frame-count",
+                              "asked for frames " + std::to_string(first) + " to " + std::to_string(end - 1) +
+                                  ", the file has " + std::to_string(index)});
+  }
+  if (index < first) {
+    return report(FormatError{args.frames, 0, "--first-frame",
+                              "is " + std::to_string(first) + ", the file has " + std::to_string(index) + " frames"});
+  }
+  if (!args.pvs.empty() && args.frame_count < 0 && !pvs_in.at_end()) {
+    return report_message(args.pvs + ":" + std::to_string(pvs_in.line()) + ": more PVS lines than frames (" +
+                          std::to_string(index) + " frames in " + args.frames + ")");
+  }
+  if (!out.commit(&message)) return report(FormatError{out.path(), 0, "", message});
+
+  if (!args.quiet) {
+    const Spread d = spread(draw_ms), r = spread(read_ms), q = spread(query_ms);
+    std::fprintf(stderr,
+                 "voxvis: verified %llu frames at %dx%d (%s): %llu missed object-frames in %llu frames; "
+                 "visible %llu, PVS %llu, tightness %.3f; draw ms median %.2f p99 %.2f, queries %.2f, "
+                 "read %.2f\n",
+                 static_cast<unsigned long long>(verified), w, h, render::method_name(method),
+                 static_cast<unsigned long long>(total_missed), static_cast<unsigned long long>(frames_missed),
+                 static_cast<unsigned long long>(total_visible), static_cast<unsigned long long>(total_pvs),
+                 total_visible ? static_cast<double>(total_pvs) / static_cast<double>(total_visible) : 0.0,
+                 d.median, d.p99, q.median, r.median);
+  }
+  return total_missed > 0 ? kExitMissed : kExitOk;
+}
+
+}  // namespace voxvis::cli
