@@ -916,6 +916,7 @@ Status Scene::apply_moves(double t, std::span<const Move> moves, MoveReport* rep
   }
   s.time = t;
   s.time_set = true;
+  if (!moves.empty()) ++s.moves_epoch;
   s.apply_queue(s.pending, s.claims_made);  // Frames' queued reveals and TBVs first.
   if (report) {
     *report = MoveReport{};
@@ -965,10 +966,11 @@ std::uint64_t Scene::wake_epoch() const {
   return impl_->wake_epoch;
 }
 
-std::vector<Move> Scene::dynamic_centers(double* time) const {
+std::vector<Move> Scene::dynamic_centers(double* time, std::uint64_t* epoch) const {
   std::shared_lock<detail::GridMutex> lock(impl_->mu);
   std::lock_guard<std::mutex> book(impl_->book);
   if (time) *time = impl_->time;
+  if (epoch) *epoch = impl_->moves_epoch;
   std::vector<Move> out;
   out.reserve(impl_->dynamic_count);
   for (const Obj& o : impl_->objs)

@@ -233,6 +233,7 @@ struct Scene::Impl {
   double time = 0.0;
   bool time_set = false;
   std::uint64_t wake_epoch = 0;  ///< Bumped whenever an object enters or leaves a TBV.
+  std::uint64_t moves_epoch = 0;  ///< Bumped by every accepted apply_moves (under `mu` exclusive).
   /// Time of the first frame: objects that have not moved since have been at
   /// their initial centres from then on. NaN before the first frame.
   double first_frame_time = std::numeric_limits<double>::quiet_NaN();

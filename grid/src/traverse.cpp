@@ -901,6 +901,7 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
   // the scene, so frames of different viewers run this part in parallel.
   {
     std::shared_lock<detail::GridMutex> lock(s.mu);
+    out->positions_epoch = s.moves_epoch;
     w.ob.begin(wf, s.options.occlusion_buffer);
     st.ob_width = static_cast<std::uint32_t>(w.ob.width());
     Traversal trav(s, w, wf, st);

@@ -79,5 +79,32 @@ TEST(SceneObservers, DynamicCentersAreTheMovedPositionsInIdOrder) {
   EXPECT_EQ(c[0].center, Vec3(3.0));
 }
 
+TEST(SceneObservers, PositionsEpochTellsWhetherAFrameSawTheCurrentPositions) {
+  // A frame records the move epoch it ran under; dynamic_centers reports the
+  // current one: equal exactly when no batch of moves landed in between.
+  SceneDesc desc;
+  desc.bounds_max = Vec3(10.0);
+  desc.objects = {test::dynamic(test::sphere(9, Vec3(1.0), 0.5), 1.0), test::sphere(4, Vec3(5.0), 0.5)};
+  std::unique_ptr<Scene> scene;
+  ASSERT_TRUE(Scene::create(desc, SceneOptions{}, &scene));
+  const ViewerId v = scene->add_viewer();
+  Scratch scratch;
+  FrameResult r;
+  const Camera cam = test::camera_along(Vec3(5.0, 5.0, 9.5), Vec3(0.0, 0.0, -1.0));
+  ASSERT_TRUE(scene->frame(v, cam, 0.5, scratch, &r));
+  std::uint64_t epoch = 0;
+  scene->dynamic_centers(nullptr, &epoch);
+  EXPECT_EQ(epoch, r.positions_epoch);
+  ASSERT_TRUE(scene->apply_moves(1.0, std::vector<Move>{{9, Vec3(1.2, 1.0, 1.0)}}));
+  scene->dynamic_centers(nullptr, &epoch);
+  EXPECT_NE(epoch, r.positions_epoch) << "a batch of moves landed after the frame";
+  const std::uint64_t after_moves = epoch;
+  ASSERT_TRUE(scene->apply_moves(1.5, std::vector<Move>{}));  // Only the clock: nobody moved.
+  scene->dynamic_centers(nullptr, &epoch);
+  EXPECT_EQ(epoch, after_moves);
+  ASSERT_TRUE(scene->frame(v, cam, 1.5, scratch, &r));
+  EXPECT_EQ(r.positions_epoch, epoch);
+}
+
 }  // namespace
 }  // namespace voxvis

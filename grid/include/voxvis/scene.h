@@ -118,6 +118,10 @@ struct FrameResult {
                                ///< positions the engine needs: PVS members and
                                ///< objects whose TBV was revealed or expired.
   FrameStats stats;
+  /// The scene's move epoch the frame saw: it changes with every accepted
+  /// apply_moves, so objects were where dynamic_centers() says exactly when
+  /// it reports the same epoch (used to verify served frames later).
+  std::uint64_t positions_epoch = 0;
 };
 
 /// What Scene::apply_moves saw. Moves are applied even when too fast; such an
@@ -211,8 +215,10 @@ class Scene {
   /// a TBV), so that callers recompute the set only then.
   std::uint64_t wake_epoch() const;
   /// Current centres of the dynamic objects, ascending ids, world units, and
-  /// (when `time` is given) the scene time they are at, read together.
-  std::vector<Move> dynamic_centers(double* time = nullptr) const;
+  /// (when `time` is given) the scene time they are at and (when `epoch` is
+  /// given) the positions' epoch (FrameResult::positions_epoch), all read
+  /// together.
+  std::vector<Move> dynamic_centers(double* time = nullptr, std::uint64_t* epoch = nullptr) const;
 
   struct Impl;
   /// The engine's internals (grid/src/scene_impl.h), for its own tests.
