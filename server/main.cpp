@@ -94,6 +94,24 @@ int run(int argc, char** argv) {
                  "--occlusion-buffer`")
       ->type_name("PIXELS")
       ->capture_default_str();
+  app.add_option("--verify-fraction", config.verify_fraction,
+                 "Verify this fraction of served frames in the background with EGL (0..1; 0: off); "
+                 "misses are counted in the metrics and logged")
+      ->type_name("F")
+      ->capture_default_str();
+  app.add_option("--verify-resolution", config.verify_resolution, "Pixels of the verify renders")
+      ->type_name("WxH")
+      ->capture_default_str();
+  app.add_option("--verify-queue", config.verify_queue,
+                 "Sampled frames waiting for the verifier at most; more are dropped (counted)")
+      ->type_name("N")
+      ->capture_default_str();
+  app.add_option("--egl-platform", config.egl_platform, "EGL platform of the verify mode: auto, device, surfaceless")
+      ->type_name("NAME")
+      ->capture_default_str();
+  app.add_option("--egl-device", config.egl_device,
+                 "EGL device of the verify mode; default: a GPU if any, else the software one")
+      ->type_name("N");
   app.add_flag("--reflection", config.reflection,
                "Serve gRPC server reflection, which answers without a token: trusted networks only");
   app.add_option("--port-file", config.port_file,

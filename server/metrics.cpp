@@ -100,6 +100,19 @@ struct Families {
                     .Help("Open viewer streams")
                     .Register(r)),
         scenes(prometheus::BuildGauge().Name("voxvis_scenes").Help("Scenes loaded").Register(r)),
+        verified(prometheus::BuildCounter()
+                     .Name("voxvis_verify_frames_total")
+                     .Help("Served frames rendered and checked by the verify mode")
+                     .Register(r)),
+        verify_missed(prometheus::BuildCounter()
+                          .Name("voxvis_verify_missed_objects_total")
+                          .Help("Visible objects missing from a verified frame's PVS (should stay 0)")
+                          .Register(r)),
+        verify_dropped(prometheus::BuildCounter()
+                           .Name("voxvis_verify_dropped_total")
+                           .Help("Frames sampled for verification but not verified (queue full, or "
+                                 "objects moved before their positions were read)")
+                           .Register(r)),
         errors(prometheus::BuildCounter()
                    .Name("voxvis_errors_total")
                    .Help("Calls that ended with a non-OK status, by method and status code")
@@ -116,6 +129,9 @@ struct Families {
   Family<Gauge>& tbvs;
   Family<Gauge>& viewers;
   Family<Gauge>& scenes;
+  Family<Counter>& verified;
+  Family<Counter>& verify_missed;
+  Family<Counter>& verify_dropped;
   Family<Counter>& errors;
 };
 
@@ -143,6 +159,9 @@ class PrometheusSceneMetrics final : public SceneMetrics {
     wake_ = &f.wake.Add(labels);
     tbvs_ = &f.tbvs.Add(labels);
     viewers_ = &f.viewers.Add(labels);
+    verified_ = &f.verified.Add(labels);
+    verify_missed_ = &f.verify_missed.Add(labels);
+    verify_dropped_ = &f.verify_dropped.Add(labels);
   }
 
   /// Family::Remove destroys the metric objects, while callers may still hold
@@ -164,6 +183,9 @@ class PrometheusSceneMetrics final : public SceneMetrics {
     f.wake.Remove(wake_);
     f.tbvs.Remove(tbvs_);
     f.viewers.Remove(viewers_);
+    f.verified.Remove(verified_);
+    f.verify_missed.Remove(verify_missed_);
+    f.verify_dropped.Remove(verify_dropped_);
   }
 
   void frame(const FrameStats& stats, double latency_seconds) override {
@@ -199,6 +221,16 @@ class PrometheusSceneMetrics final : public SceneMetrics {
     if (delta > 0) viewers_->Increment(static_cast<double>(delta));
     if (delta < 0) viewers_->Decrement(-static_cast<double>(delta));
   }
+  void verified(std::size_t missed) override {
+    std::shared_lock lock(mutex_);
+    if (removed_) return;
+    verified_->Increment();
+    if (missed > 0) verify_missed_->Increment(static_cast<double>(missed));
+  }
+  void verify_dropped() override {
+    std::shared_lock lock(mutex_);
+    if (!removed_) verify_dropped_->Increment();
+  }
 
  private:
   std::shared_ptr<State> state_;
@@ -214,6 +246,9 @@ class PrometheusSceneMetrics final : public SceneMetrics {
   Gauge* wake_;
   Gauge* tbvs_;
   Gauge* viewers_;
+  Counter* verified_;
+  Counter* verify_missed_;
+  Counter* verify_dropped_;
 };
 
 class PrometheusMetrics final : public Metrics {
@@ -279,6 +314,8 @@ class NullSceneMetrics final : public SceneMetrics {
   void wake_size(std::size_t) override {}
   void tbvs_active(std::uint32_t) override {}
   void viewers(int) override {}
+  void verified(std::size_t) override {}
+  void verify_dropped() override {}
 };
 
 class NullMetrics final : public Metrics {

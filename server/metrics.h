@@ -12,6 +12,9 @@
 //   voxvis_wake_size{scene}                   gauge: current wake-list size
 //   voxvis_tbvs_active{scene}                 gauge
 //   voxvis_viewers{scene}                     gauge: open viewer streams
+//   voxvis_verify_frames_total{scene}         counter: served frames checked by --verify-fraction
+//   voxvis_verify_missed_objects_total{scene} counter: visible objects missing from a checked PVS
+//   voxvis_verify_dropped_total{scene}        counter: frames sampled but not checked
 //   voxvis_scenes                             gauge
 //   voxvis_errors_total{method, code}         counter: calls ended with a non-OK status
 #pragma once
@@ -36,6 +39,10 @@ class SceneMetrics {
   virtual void wake_size(std::size_t n) = 0;
   virtual void tbvs_active(std::uint32_t n) = 0;
   virtual void viewers(int delta) = 0;
+  /// A served frame verified (verify mode), with its missed objects.
+  virtual void verified(std::size_t missed) = 0;
+  /// A frame sampled for verification that could not be verified.
+  virtual void verify_dropped() = 0;
 };
 
 class Metrics {

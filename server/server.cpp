@@ -20,6 +20,7 @@
 #include "auth.h"
 #include "health.h"
 #include "metrics.h"
+#include "verifier.h"
 #include "pool.h"
 #include "service.h"
 #include "store.h"
@@ -93,6 +94,30 @@ class ServerImpl final : public Server {
       return fail(error, s.field == "occlusion_buffer" ? "--occlusion-buffer: " + s.message
                                                        : "scene options: " + s.str());
     if (config_.max_calls < 1) return fail(error, "--max-calls must be >= 1");
+    VerifyConfig vc;
+    if (!(config_.verify_fraction >= 0.0 && config_.verify_fraction <= 1.0))
+      return fail(error, "--verify-fraction must be within [0, 1]");
+    vc.fraction = config_.verify_fraction;
+    {
+      const std::string& r = config_.verify_resolution;
+      const std::size_t x = r.find('x');
+      const auto digits = [](const std::string& d) {
+        return !d.empty() && d.size() <= 5 && d.find_first_not_of("0123456789") == std::string::npos;
+      };
+      if (x == std::string::npos || !digits(r.substr(0, x)) || !digits(r.substr(x + 1)) ||
+          (vc.width = std::stoi(r.substr(0, x))) < 1 || (vc.height = std::stoi(r.substr(x + 1))) < 1)
+        return fail(error, "--verify-resolution must be WIDTHxHEIGHT, each >= 1 (for example 320x180), got '" +
+                               r + "'");
+    }
+    if (config_.verify_queue < 1) return fail(error, "--verify-queue must be >= 1");
+    vc.queue = static_cast<std::size_t>(config_.verify_queue);
+    {
+      std::string message;
+      if (!render::parse_platform(config_.egl_platform, &vc.context.platform, &message))
+        return fail(error, "--egl-platform: " + message);
+      if (config_.egl_device < -1) return fail(error, "--egl-device must be >= 0");
+      vc.context.device = config_.egl_device;
+    }
     if (config_.max_streams_per_connection < 1)
       return fail(error, "--max-streams-per-connection must be >= 1");
     const std::uint64_t grpc_memory =
@@ -121,6 +146,12 @@ class ServerImpl final : public Server {
       return fail(error, std::string("--metrics: ") + e.what());
     }
 
+    if (vc.fraction > 0.0) {
+      verifier_ = Verifier::start(vc, log_, error);
+      if (!verifier_) return false;
+      log_("verify mode: " + std::to_string(vc.fraction) + " of frames at " + std::to_string(vc.width) + "x" +
+           std::to_string(vc.height) + " on " + verifier_->renderer_info().summary());
+    }
     pool_ = std::make_unique<WorkerPool>(workers);
     ServiceConfig sc;
     sc.scene_options = config_.scene_options;
@@ -130,6 +161,7 @@ class ServerImpl final : public Server {
     sc.max_time_step_s = config_.max_time_step_s;
     sc.max_calls = config_.max_calls;
     service_ = std::make_unique<Service>(sc, *pool_, store_, tokens_, *metrics_, log_);
+    service_->set_verifier(verifier_.get());
 
     // Scenes acknowledged in earlier runs, at their last saved positions.
     for (const StoredScene& st : store_.load_all(log_)) {
@@ -287,6 +319,7 @@ class ServerImpl final : public Server {
   TokenTable tokens_;
   SceneStore store_;
   std::unique_ptr<Metrics> metrics_;
+  std::unique_ptr<Verifier> verifier_;  // Outlives the pool, whose jobs hand it frames.
   std::unique_ptr<WorkerPool> pool_;
   std::unique_ptr<Service> service_;
   std::unique_ptr<grpc::Server> server_;

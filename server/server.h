@@ -38,6 +38,13 @@ struct ServerConfig {
   /// the data directory's scenes at start); occlusion_buffer is
   /// --occlusion-buffer. Checked by start() before anything is loaded.
   SceneOptions scene_options;
+  /// Verify mode: this fraction of served frames is rendered on a background
+  /// thread (EGL) and checked; 0: off. [0, 1].
+  double verify_fraction = 0.0;
+  std::string verify_resolution = "320x180";  ///< WxH of the verify renders.
+  int verify_queue = 64;                      ///< Frames waiting at most; more are dropped.
+  std::string egl_platform = "auto";          ///< auto, device or surfaceless.
+  int egl_device = -1;                        ///< -1: a GPU if any, else the software device.
 };
 
 class Server {

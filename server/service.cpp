@@ -158,6 +158,30 @@ grpc::Status Service::enter_call() {
                           " calls in progress (--max-calls); try again");
 }
 
+void Service::verify_served(const SceneEntry& e, const std::string& viewer, std::uint64_t frame,
+                            const Camera& camera, const FrameResult& result) {
+  if (!verifier_ || !e.verify_objects) return;
+  std::uint64_t epoch = 0;
+  const std::vector<Move> centers = e.scene->dynamic_centers(nullptr, &epoch);
+  if (epoch != result.positions_epoch) {
+    // A move batch landed between the frame and this read: the positions the
+    // frame saw are gone, and checking against newer ones could report
+    // misses that were none.
+    verifier_->dropped(e.metrics.get());
+    return;
+  }
+  VerifyJob job;
+  job.scene = e.id;
+  job.viewer = viewer;
+  job.frame = frame;
+  job.t = result.t;
+  job.camera = camera;
+  job.pvs = result.pvs;
+  job.objects = objects_at(*e.verify_objects, centers);
+  job.metrics = e.metrics;
+  verifier_->submit(std::move(job));
+}
+
 void Service::count_error(const char* method, const grpc::Status& status) {
   metrics_.error(method, status.error_code());
 }
@@ -250,6 +274,11 @@ grpc::Status Service::build_scene(const std::string& id, SceneDesc desc, const s
   entry->dynamic_objects = static_cast<std::uint32_t>(entry->scene->dynamic_count());
   entry->time.store(entry->scene->time());
   entry->metrics = metrics_.scene(id);
+  if (verifier_) {
+    std::vector<ObjectDesc> objects = std::move(desc.objects);
+    std::sort(objects.begin(), objects.end(), [](const ObjectDesc& a, const ObjectDesc& b) { return a.id < b.id; });
+    entry->verify_objects = std::make_shared<const std::vector<ObjectDesc>>(std::move(objects));
+  }
   entry->refresh_wake();
   entry->tbvs_active.store(0);
   std::size_t count;
@@ -509,7 +538,10 @@ grpc::ServerUnaryReactor* Service::GetPvs(grpc::CallbackServerContext* ctx,
     resp->set_t(result.t);
     if (e->metrics)
       e->metrics->frame(result.stats, std::chrono::duration<double>(Clock::now() - received).count());
+    const bool check = verify_sample();
+    const std::string peer = check ? ctx->peer() : std::string();
     finish_unary(r, "GetPvs", grpc::Status::OK);
+    if (check) verify_served(*e, peer + " (GetPvs)", 0, camera, result);
   });
   return reactor;
 }

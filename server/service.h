@@ -30,6 +30,7 @@
 #include "metrics.h"
 #include "pool.h"
 #include "store.h"
+#include "verifier.h"
 #include "voxvis/scene.h"
 #include "voxvis/v1/voxvis.grpc.pb.h"
 
@@ -78,6 +79,9 @@ struct SceneEntry {
   /// time at load). Viewers' frames may run at most ServiceConfig's
   /// max_view_lead_s beyond it. Written by the scene's strand only.
   std::atomic<double> sim_time{0.0};
+  /// Verify mode only: the scene's objects as created, ascending ids (the
+  /// static ones never move; dynamic centres come from the scene).
+  std::shared_ptr<const std::vector<ObjectDesc>> verify_objects;
   /// Whether any simulation batch (or a saved time) has set the clock yet;
   /// the first may set it anywhere in range. Touched by the strand only.
   bool sim_clock_set = false;
@@ -193,6 +197,15 @@ class Service final : public RawVisibilityService {
   void remove_stream(Stream* s);
   /// Counts a call ended with a non-OK status.
   void count_error(const char* method, const grpc::Status& status);
+  /// Verify mode (--verify-fraction): set before serving; null when off.
+  void set_verifier(Verifier* v) { verifier_ = v; }
+  /// Whether the frame about to be served is one to verify.
+  bool verify_sample() { return verifier_ != nullptr && verifier_->sample(); }
+  /// Hands a served frame to the verifier, after its answer: reads the
+  /// dynamic objects' positions, which must still be those the frame saw
+  /// (FrameResult::positions_epoch), else the frame is dropped (counted).
+  void verify_served(const SceneEntry& e, const std::string& viewer, std::uint64_t frame, const Camera& camera,
+                     const FrameResult& result);
   /// Ends a unary call, counting an error.
   void finish_unary(UnaryCall* r, const char* method, const grpc::Status& s);
 
@@ -213,6 +226,7 @@ class Service final : public RawVisibilityService {
   const TokenTable& tokens_;
   Metrics& metrics_;
   Log log_;
+  Verifier* verifier_ = nullptr;
 
   mutable std::mutex scenes_mu_;
   std::map<std::string, std::shared_ptr<SceneEntry>> scenes_;  // Guarded by scenes_mu_.

@@ -292,6 +292,7 @@ class ViewReactor final
   // Pool job.
   void compute(SceneEntry& e, const Pending& p, std::uint32_t skipped, Scratch& scratch) {
     std::optional<Ready> ready;
+    std::optional<FrameResult> check;  // Verify mode: a copy of the frame served.
     grpc::Status error;
     bool stopped;
     {
@@ -323,8 +324,11 @@ class ViewReactor final
         ready.reset();
       } else {
         e.after_frame(ready->result);
+        if (svc_->verify_sample()) check.emplace(ready->result);
       }
     }
+    const std::uint64_t frame = p.frame;
+    const std::string viewer = check ? client_ + " viewer " + std::to_string(viewer_) : std::string();
     bool del;
     {
       std::lock_guard<std::mutex> lock(mu_);
@@ -337,6 +341,8 @@ class ViewReactor final
       advance_locked();
       del = end_job_locked();
     }
+    // The answer is handed over; the check runs on the verifier's thread.
+    if (check) svc_->verify_served(e, viewer, frame, p.camera, *check);
     if (del) release();
   }
 

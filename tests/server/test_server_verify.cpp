@@ -1,0 +1,216 @@
+// The server's verify mode (--verify-fraction): served frames are checked on
+// a background EGL context (llvmpipe in CI), misses counted and logged, and
+// bad settings are start errors. The Verifier itself is also tested in
+// process, with a PVS cut on purpose.
+#include <algorithm>
+#include <atomic>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "metrics.h"
+#include "scenes.h"
+#include "server_process.h"
+#include "verifier.h"
+#include "voxvis/format.h"
+#include "voxvis/generate.h"
+
+namespace voxvis::servertest {
+namespace {
+
+using ::testing::HasSubstr;
+using ::testing::Not;
+using server::VerifyConfig;
+using server::Verifier;
+using server::VerifyJob;
+
+/// Counts what the verifier reports.
+class CountingMetrics final : public server::SceneMetrics {
+ public:
+  void frame(const FrameStats&, double) override {}
+  void skipped(std::uint32_t) override {}
+  void moves(std::uint32_t) override {}
+  void wake_size(std::size_t) override {}
+  void tbvs_active(std::uint32_t) override {}
+  void viewers(int) override {}
+  void verified(std::size_t missed) override {
+    ++frames;
+    objects_missed += missed;
+  }
+  void verify_dropped() override { ++dropped; }
+  std::atomic<std::size_t> frames{0}, objects_missed{0}, dropped{0};
+};
+
+/// The value of a metric line "name{scene="id"} value", -1 when absent.
+double metric(const std::string& text, const std::string& name, const std::string& scene) {
+  const std::string key = name + "{scene=\"" + scene + "\"} ";
+  const std::size_t at = text.find(key);
+  if (at == std::string::npos) return -1.0;
+  return std::stod(text.substr(at + key.size()));
+}
+
+TEST(Verifier, SampleTakesExactlyTheFractionSpreadEvenly) {
+  VerifyConfig c;
+  c.fraction = 0.25;
+  std::string error;
+  auto v = Verifier::start(c, [](const std::string&) {}, &error);
+  ASSERT_TRUE(v) << error;
+  int taken = 0, longest_gap = 0, gap = 0;
+  for (int i = 0; i < 1000; ++i) {
+    if (v->sample()) {
+      ++taken;
+      gap = 0;
+    } else {
+      longest_gap = std::max(longest_gap, ++gap);
+    }
+  }
+  EXPECT_EQ(taken, 250);
+  EXPECT_EQ(longest_gap, 3);
+}
+
+TEST(Verifier, CountsAndLogsTheMissesOfACutPvs) {
+  VerifyConfig c;
+  c.fraction = 1.0;
+  c.width = 64;
+  c.height = 36;
+  std::vector<std::string> lines;
+  std::mutex mu;
+  std::string error;
+  auto v = Verifier::start(
+      c,
+      [&](const std::string& l) {
+        std::lock_guard<std::mutex> lock(mu);
+        lines.push_back(l);
+      },
+      &error);
+  ASSERT_TRUE(v) << error;
+  // Two spheres side by side in front of the eye, a third hidden behind a wall.
+  VerifyJob job;
+  job.scene = "s";
+  job.viewer = "peer-1 viewer 4";
+  job.frame = 7;
+  job.camera = test::camera_along(Vec3(0.0), Vec3(0, 0, -1), 60.0, 16.0 / 9.0);
+  job.objects = {test::sphere(1, Vec3(-1, 0, -6), 0.8), test::sphere(2, Vec3(1, 0, -6), 0.8),
+                 test::box_between(3, Vec3(-5, -5, -10), Vec3(5, 5, -9)), test::sphere(4, Vec3(0, 0, -15), 1.0)};
+  auto m = std::make_shared<CountingMetrics>();
+  job.metrics = m;
+  job.pvs = {1, 3};  // Lacks 2, which shows; 4 is hidden.
+  v->submit(job);
+  job.frame = 8;
+  job.pvs = {1, 2, 3};  // Complete.
+  v->submit(job);
+  v->drain();
+  EXPECT_EQ(m->frames.load(), 2u);
+  EXPECT_EQ(m->objects_missed.load(), 1u);
+  const Verifier::Totals t = v->totals();
+  EXPECT_EQ(t.verified, 2u);
+  EXPECT_EQ(t.frames_missed, 1u);
+  EXPECT_EQ(t.objects_missed, 1u);
+  std::lock_guard<std::mutex> lock(mu);
+  ASSERT_EQ(lines.size(), 1u);
+  EXPECT_THAT(lines[0], HasSubstr("verify: MISS scene 's' viewer peer-1 viewer 4 frame 7: 1 visible object(s)"));
+  EXPECT_THAT(lines[0], HasSubstr("[2]"));
+  EXPECT_THAT(lines[0], HasSubstr("\"eye\""));  // The camera, as a frames line.
+}
+
+TEST(Verifier, AFullQueueDropsAndCounts) {
+  VerifyConfig c;
+  c.fraction = 1.0;
+  c.queue = 1;
+  std::string error;
+  auto v = Verifier::start(c, [](const std::string&) {}, &error);
+  ASSERT_TRUE(v) << error;
+  auto m = std::make_shared<CountingMetrics>();
+  VerifyJob job;
+  job.scene = "s";
+  job.camera = test::camera_along(Vec3(0.0), Vec3(0, 0, -1));
+  const SceneDesc scene = make_paper_scene(PaperSceneParams{});
+  job.objects = scene.objects;
+  std::sort(job.objects.begin(), job.objects.end(),
+            [](const ObjectDesc& a, const ObjectDesc& b) { return a.id < b.id; });
+  job.metrics = m;
+  for (int i = 0; i < 50; ++i) v->submit(job);
+  v->drain();
+  EXPECT_GT(m->dropped.load(), 0u);
+  EXPECT_EQ(m->dropped.load() + m->frames.load(), 50u);
+  EXPECT_EQ(v->totals().dropped, m->dropped.load());
+}
+
+TEST(Verifier, ObjectsAtReplacesDynamicCentresById) {
+  const std::vector<ObjectDesc> objects = {test::sphere(2, Vec3(0.0), 1.0), test::sphere(5, Vec3(1.0), 1.0),
+                                           test::sphere(9, Vec3(2.0), 1.0)};
+  const std::vector<ObjectDesc> moved = server::objects_at(objects, {Move{5, Vec3(7.0)}, Move{9, Vec3(8.0)}});
+  ASSERT_EQ(moved.size(), 3u);
+  EXPECT_EQ(moved[0].center, Vec3(0.0));
+  EXPECT_EQ(moved[1].center, Vec3(7.0));
+  EXPECT_EQ(moved[2].center, Vec3(8.0));
+}
+
+TEST(ServerVerify, ServedFramesAreCheckedWithoutMisses) {
+  ServerProcess server({"--verify-fraction", "1", "--verify-resolution", "96x54", "--metrics", "127.0.0.1:0"});
+  ASSERT_TRUE(server.start());
+  EXPECT_THAT(server.log(), HasSubstr("verify mode: "));
+  const Api api = server.api();
+  PaperSceneParams p;
+  p.objects = 400;
+  p.dynamic = 40;
+  const SceneDesc scene = make_paper_scene(p);
+  ASSERT_TRUE(api.create_scene_json("paper", scene_to_json(scene)).ok());
+  WalkthroughParams w;
+  w.frames = 12;
+  const std::vector<FrameInput> frames = make_walkthrough(scene, w);
+  {
+    ViewStream view(api, "paper");
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+      v1::ViewResponse r;
+      ASSERT_TRUE(view.frame(i + 1, frames[i].t, frames[i].camera, &r));
+    }
+    EXPECT_TRUE(view.finish().ok());
+  }
+  v1::GetPvsResponse pvs;
+  ASSERT_TRUE(api.get_pvs("paper", frames[0].t, frames[0].camera, &pvs).ok());
+  const int port = server.metrics_port();
+  ASSERT_GT(port, 0);
+  std::string text;
+  EXPECT_TRUE(wait_until(
+      [&] {
+        text = http_get(port, "/metrics");
+        return metric(text, "voxvis_verify_frames_total", "paper") +
+                   metric(text, "voxvis_verify_dropped_total", "paper") >=
+               13.0;
+      },
+      Seconds(60)))
+      << text;
+  EXPECT_GE(metric(text, "voxvis_verify_frames_total", "paper"), 1.0) << text;
+  EXPECT_EQ(metric(text, "voxvis_verify_missed_objects_total", "paper"), 0.0) << text;
+  EXPECT_THAT(server.log(), Not(HasSubstr("MISS")));
+}
+
+TEST(ServerVerify, BadSettingsAreStartErrors) {
+  for (const std::vector<std::string>& args :
+       {std::vector<std::string>{"--verify-fraction", "1.5"}, std::vector<std::string>{"--verify-fraction", "nan"},
+        std::vector<std::string>{"--verify-fraction", "-0.1"},
+        std::vector<std::string>{"--verify-resolution", "0x10"},
+        std::vector<std::string>{"--verify-resolution", "wide"},
+        std::vector<std::string>{"--verify-queue", "0"}, std::vector<std::string>{"--egl-platform", "x11"}}) {
+    ServerProcess server(args);
+    EXPECT_FALSE(server.start()) << args[0] << " " << args[1];
+    EXPECT_THAT(server.log(), HasSubstr(args[0])) << server.log();
+  }
+  // A machine without EGL cannot verify: said at start, not at the first frame.
+  ServerProcess server({"--verify-fraction", "0.1"});
+  server.extra_env().push_back("__EGL_VENDOR_LIBRARY_FILENAMES=/nonexistent/voxvis-no-egl.json");
+  EXPECT_FALSE(server.start());
+  EXPECT_THAT(server.log(), HasSubstr("verify mode: EGL: no EGL implementation found"));
+  // Without verify mode EGL is never touched.
+  ServerProcess plain;
+  plain.extra_env().push_back("__EGL_VENDOR_LIBRARY_FILENAMES=/nonexistent/voxvis-no-egl.json");
+  EXPECT_TRUE(plain.start());
+}
+
+}  // namespace
+}  // namespace voxvis::servertest
