@@ -56,8 +56,20 @@ void Progress::update(std::size_t frames) {
   if (now - last_ < std::chrono::milliseconds(500)) return;
   last_ = now;
   const double secs = std::chrono::duration<double>(now - start_).count();
-  std::fprintf(stderr, "\rvoxvis: frame %zu, %.0f fps\x1b[K", frames,
-               secs > 0.0 ? static_cast<double>(frames) / secs : 0.0);
+  const double fps = secs > 0.0 ? static_cast<double>(frames) / secs : 0.0;
+  if (total_ > 0) {
+    constexpr int kWidth = 30;
+    const double done = std::min(1.0, static_cast<double>(frames) / static_cast<double>(total_));
+    char bar[kWidth + 1];
+    const int filled = static_cast<int>(done * kWidth);
+    for (int i = 0; i < kWidth; ++i) bar[i] = i < filled ? '#' : '.';
+    bar[kWidth] = '\0';
+    const double left = fps > 0.0 ? static_cast<double>(total_ - std::min(frames, total_)) / fps : 0.0;
+    std::fprintf(stderr, "\rvoxvis: [%s] %3.0f%% frame %zu of %zu, %.0f fps, %.0f s left\x1b[K", bar,
+                 100.0 * done, frames, total_, fps, left);
+  } else {
+    std::fprintf(stderr, "\rvoxvis: frame %zu, %.0f fps\x1b[K", frames, fps);
+  }
   std::fflush(stderr);
   shown_ = true;
 }

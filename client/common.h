@@ -35,10 +35,11 @@ Spread spread(std::vector<double> values);
 /// 1234567 -> "1,234,567".
 std::string with_commas(std::uint64_t n);
 
-/// "voxvis: frame N, F fps" on stderr, at most twice a second, when enabled.
+/// "voxvis: frame N, F fps" on stderr, at most twice a second, when enabled;
+/// with a total, a bar, the percentage and the time left.
 class Progress {
  public:
-  explicit Progress(bool enabled) : enabled_(enabled) {}
+  explicit Progress(bool enabled, std::size_t total = 0) : enabled_(enabled), total_(total) {}
   void update(std::size_t frames);
   void finish();
   double elapsed() const { return std::chrono::duration<double>(Clock::now() - start_).count(); }
@@ -46,6 +47,7 @@ class Progress {
  private:
   using Clock = std::chrono::steady_clock;
   bool enabled_;
+  std::size_t total_;
   bool shown_ = false;
   Clock::time_point start_ = Clock::now();
   Clock::time_point last_ = Clock::now();

@@ -161,6 +161,19 @@ int run_verify(const VerifyArgs& args) {
 
   std::ifstream frames(args.frames, std::ios::binary);
   if (!frames) return report(FormatError{args.frames, 0, "", std::string("cannot open: ") + std::strerror(errno)});
+  // The frames to verify, for the progress bar: one pass over the file.
+  std::size_t slice = 0;
+  const bool tty = !args.quiet && ::isatty(STDERR_FILENO) != 0;
+  if (tty) {
+    std::string l;
+    std::int64_t n = 0;
+    while (std::getline(frames, l))
+      if (!blank(l)) ++n;
+    const std::int64_t last = args.frame_count < 0 ? n : std::min(n, args.first_frame + args.frame_count);
+    slice = last > args.first_frame ? static_cast<std::size_t>(last - args.first_frame) : 0;
+    frames.clear();
+    frames.seekg(0);
+  }
   PvsReader pvs_in;
   if (!args.pvs.empty() && !pvs_in.open(args.pvs, &message)) return report_message(message);
   OutputFile out;
@@ -200,7 +213,7 @@ int run_verify(const VerifyArgs& args) {
   std::int64_t index = 0;
   int line_no = 0;
   std::string line, out_line;
-  Progress progress(!args.quiet && ::isatty(STDERR_FILENO) != 0);
+  Progress progress(tty, slice);
 
   auto fail = [&](int status) {
     progress.finish();
