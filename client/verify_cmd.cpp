@@ -223,9 +223,17 @@ int run_verify(const VerifyArgs& args) {
     ++line_no;
     if (blank(line)) continue;
     if (!parse_frame_line(line, args.frames, line_no, &frame, &error)) return fail(report(error));
-    for (const Move& mv : frame.moves) {
+    for (std::size_t i = 0; i < frame.moves.size(); ++i) {
+      // Checked here too: with --pvs no engine sees the moves.
+      const Move& mv = frame.moves[i];
+      const std::string field = "moves[" + std::to_string(i) + "].id";
       const auto it = slot.find(mv.id);
-      if (it != slot.end()) objects[it->second].center = mv.center;
+      if (it == slot.end())
+        return fail(report(FormatError{args.frames, line_no, field, "unknown object id " + std::to_string(mv.id)}));
+      if (!objects[it->second].dynamic)
+        return fail(report(FormatError{args.frames, line_no, field,
+                                       "object " + std::to_string(mv.id) + " is static and cannot move"}));
+      objects[it->second].center = mv.center;
     }
     // The PVS: the engine runs every frame (its state depends on the frames
     // before), a PVS file is read line by line; both only kept in the slice.

@@ -203,7 +203,21 @@ TEST_F(Verify, BadInputIsAClearError) {
   spit(path("many.jsonl"), slurp(path("pvs.jsonl")) + pvs[3] + "\n");
   spit(path("stranger.jsonl"), pvs[0] + "\n{\"frame\": 1, \"pvs\": [3, 99999]}\n");
   spit(path("order.jsonl"), pvs[1] + "\n");
+  // Moves of objects the scene lacks or holds static, with a PVS file (no
+  // engine to refuse them).
+  nlohmann::json moved = nlohmann::json::parse(lines_of(slurp(path("paper.jsonl")))[0]);
+  moved["moves"] = nlohmann::json::parse(R"([{"id": 987654, "center": [1, 2, 3]}])");
+  spit(path("unknown_move.jsonl"), moved.dump() + "\n");
+  moved["moves"] = nlohmann::json::parse(R"([{"id": 500, "center": [1, 2, 3]}])");  // Ids above 60 are static.
+  spit(path("static_move.jsonl"), moved.dump() + "\n");
+  spit(path("one_pvs.jsonl"), pvs[0] + "\n");
   const std::vector<Case> cases = {
+      {{"verify", "--scene", path("paper.json"), "--frames", path("unknown_move.jsonl"), "--pvs",
+        path("one_pvs.jsonl")},
+       "unknown_move.jsonl:1: moves[0].id: unknown object id 987654"},
+      {{"verify", "--scene", path("paper.json"), "--frames", path("static_move.jsonl"), "--pvs",
+        path("one_pvs.jsonl")},
+       "static_move.jsonl:1: moves[0].id: object 500 is static and cannot move"},
       {with({"--resolution", "0x10"}), "--resolution: width and height must be >= 1"},
       {with({"--resolution", "640"}), "--resolution: expected WIDTHxHEIGHT"},
       {with({"--resolution", "-5x10"}), "--resolution: expected WIDTHxHEIGHT"},
