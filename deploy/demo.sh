@@ -60,4 +60,13 @@ else
   echo "voxvis: answers over the socket differ from the offline replay" >&2
   exit 1
 fi
-echo "voxvis: per-frame answers in $work/paper-view.jsonl" >&2
+# And checked: every object that shows at 640x360 (rendered headlessly through
+# EGL) must be in the answer the server gave.
+if build/voxvis verify --scene examples/paper/scene.json --frames examples/paper/frames.jsonl \
+  --pvs "$work/paper-view.jsonl" --resolution 640x360 --out "$work/paper-verify.jsonl"; then
+  echo "voxvis: no visible object missing from any of the 300 answers" >&2
+else
+  echo "voxvis: verification found misses (or could not render): see above" >&2
+  exit 1
+fi
+echo "voxvis: per-frame answers in $work/paper-view.jsonl, their verification in $work/paper-verify.jsonl" >&2
