@@ -30,6 +30,9 @@
 //                          can see only along an edge or at a corner: a tie
 //                          the ray caster counts as visible but its sampled
 //                          rays never find (edge_only_blocks)
+//       voxels_sub_mean, in_view_mean (indoor, voxel world, city) voxels
+//                          visited and voxels in view (test::voxels_in_view,
+//                          256x144 rays) on the sampled frames
 //       vfc_mean           objects passing view-frustum culling alone (AABB)
 //       ob_voxels_mean, ob_objects_mean (with /ob:W) voxels and objects or
 //                          TBVs the buffer proved hidden per frame
@@ -90,6 +93,10 @@ struct Recording {
   std::vector<int> sampled;  ///< Frame indices.
   double exact_mean = 0.0;
   double vfc_mean = 0.0;
+  /// Voxels in view on the sampled frames (test::voxels_in_view at
+  /// kInViewCols x kInViewRows rays), on the scene's own grid; 0 when the
+  /// scene names none.
+  std::vector<double> in_view;
 };
 
 enum class Path { Walkthrough, Indoor, Surface, Cave, City };
@@ -99,6 +106,8 @@ enum class Path { Walkthrough, Indoor, Surface, Cave, City };
 /// lower bound of the visible set; at 256 x 144 it missed a quarter of the
 /// voxel world's visible blocks (docs/performance.md, "The reference").
 constexpr int kExactCols = 1024, kExactRows = 576, kSampleEvery = 20;
+/// Rays for the voxels in view (one per cell centre).
+constexpr int kInViewCols = 256, kInViewRows = 144;
 
 Recording record(Path which) {
   Recording out;
@@ -120,6 +129,7 @@ Recording record(Path which) {
   }
   std::vector<ObjectDesc> objects = out.scene.objects;
   double exact = 0.0, vfc = 0.0;
+  const bool grid = out.scene.grid.has_value();
   for (std::size_t k = 0; k < out.frames.size(); ++k) {
     test::apply_moves_to(&objects, out.frames[k].moves);
     if (k % kSampleEvery != 0) continue;
@@ -129,6 +139,14 @@ Recording record(Path which) {
     s.seed = k;
     exact += static_cast<double>(test::visible_objects(objects, out.frames[k].camera, s).size());
     vfc += static_cast<double>(test::frustum_objects(objects, out.frames[k].camera).size());
+    RaySampling centres;
+    centres.cols = kInViewCols;
+    centres.rows = kInViewRows;
+    centres.jitter = false;
+    out.in_view.push_back(grid ? static_cast<double>(test::voxels_in_view(objects, out.frames[k].camera,
+                                                                          out.scene.bounds_min, out.scene.bounds_max,
+                                                                          *out.scene.grid, centres))
+                               : 0.0);
     out.sampled.push_back(static_cast<int>(k));
   }
   const double n = static_cast<double>(std::max<std::size_t>(1, out.sampled.size()));
@@ -241,7 +259,7 @@ void BM_Path(benchmark::State& state, Path which, glm::ivec3 grid, int ob) {
   }
   std::vector<double> times, vfc_times;
   double voxels = 0.0, ob_voxels = 0.0, ob_objects = 0.0, pvs = 0.0;
-  std::vector<double> pvs_at(n, -1.0);
+  std::vector<double> pvs_at(n, -1.0), voxels_at(n, -1.0);
   std::vector<int> edge_only(n, 0);
   for (auto _ : state) {
     const std::size_t k = ping_pong(step, n);
@@ -256,6 +274,7 @@ void BM_Path(benchmark::State& state, Path which, glm::ivec3 grid, int ob) {
     pvs += static_cast<double>(result.pvs.size());
     if (pvs_at[k] < 0.0) {
       pvs_at[k] = static_cast<double>(result.pvs.size());
+      voxels_at[k] = static_cast<double>(result.stats.voxels_visited);
       if (k % kSampleEvery == 0 && (which == Path::Surface || which == Path::Cave))
         edge_only[k] = edge_only_blocks(desc, rec.frames[k].camera, result.pvs);
     }
@@ -275,14 +294,23 @@ void BM_Path(benchmark::State& state, Path which, glm::ivec3 grid, int ob) {
     state.counters["ob_voxels_mean"] = ob_voxels / frames;
     state.counters["ob_objects_mean"] = ob_objects / frames;
   }
-  double sub = 0.0, sub_edge = 0.0;
+  double sub = 0.0, sub_edge = 0.0, sub_voxels = 0.0, sub_in_view = 0.0;
   int sub_n = 0;
-  for (int k : rec.sampled) {
-    if (pvs_at[static_cast<std::size_t>(k)] >= 0.0) {
-      sub += pvs_at[static_cast<std::size_t>(k)];
-      sub_edge += edge_only[static_cast<std::size_t>(k)];
+  for (std::size_t i = 0; i < rec.sampled.size(); ++i) {
+    const auto k = static_cast<std::size_t>(rec.sampled[i]);
+    if (pvs_at[k] >= 0.0) {
+      sub += pvs_at[k];
+      sub_edge += edge_only[k];
+      sub_voxels += voxels_at[k];
+      sub_in_view += rec.in_view[i];
       ++sub_n;
     }
+  }
+  // Voxels visited against voxels in view, on the same frames and the
+  // scene's own grid.
+  if (grid.x == 0 && sub_in_view > 0.0) {
+    state.counters["voxels_sub_mean"] = sub_voxels / sub_n;
+    state.counters["in_view_mean"] = sub_in_view / sub_n;
   }
   state.counters["pvs_sub_mean"] = sub_n ? sub / sub_n : 0.0;
   if (which == Path::Surface || which == Path::Cave) state.counters["edge_only_mean"] = sub_n ? sub_edge / sub_n : 0.0;

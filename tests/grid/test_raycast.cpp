@@ -362,5 +362,30 @@ TEST(Scenes, MoverRespectsMaxSpeed) {
   }
 }
 
+TEST(RayCast, VoxelsInViewAreThoseRaysCrossUpToTheirFirstHit) {
+  // Unit voxels, 10 a side; one ray (a 1x1 sampling) along the row y = z = 5.
+  const Vec3 lo(0.0), hi(10.0);
+  const glm::ivec3 res(10);
+  RaySampling one;
+  one.cols = one.rows = 1;
+  one.jitter = false;
+  const Camera along = camera_along(Vec3(0.5, 5.5, 5.5), Vec3(1, 0, 0), 1.0, 1.0, 0.05, 1000.0);
+  // Nothing in the way: every voxel of the row.
+  EXPECT_EQ(voxels_in_view({}, along, lo, hi, res, one), 10u);
+  // A wall filling x in [5, 6]: up to and including the voxel of the hit.
+  const std::vector<ObjectDesc> wall = {box_between(1, Vec3(5, 0, 0), Vec3(6, 10, 10))};
+  EXPECT_EQ(voxels_in_view(wall, along, lo, hi, res, one), 6u);
+  // From outside the grid, the row from where the ray enters it.
+  const Camera outside = camera_along(Vec3(-20.0, 5.5, 5.5), Vec3(1, 0, 0), 1.0, 1.0, 0.05, 1000.0);
+  EXPECT_EQ(voxels_in_view(wall, outside, lo, hi, res, one), 6u);
+  // A far plane at 3.2 stops it in the fourth voxel.
+  const Camera short_far = camera_along(Vec3(0.5, 5.5, 5.5), Vec3(1, 0, 0), 1.0, 1.0, 0.05, 3.2);
+  EXPECT_EQ(voxels_in_view(wall, short_far, lo, hi, res, one), 4u);
+  // A diagonal ray in the plane z = 5.5 crosses a voxel boundary on every
+  // step in x or y: from (0.5, 0.5) to the far corner, 19 voxels.
+  const Camera diagonal = camera_along(Vec3(0.5, 0.5, 5.5), Vec3(1, 1.0 + 1e-9, 0), 1.0, 1.0, 0.05, 1000.0);
+  EXPECT_EQ(voxels_in_view({}, diagonal, lo, hi, res, one), 19u);
+}
+
 }  // namespace
 }  // namespace voxvis::test

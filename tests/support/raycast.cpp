@@ -295,6 +295,85 @@ std::vector<ObjectId> first_hit(const std::vector<ObjectDesc>& objects, const Ca
   return ids;
 }
 
+std::size_t voxels_in_view(const std::vector<ObjectDesc>& objects, const Camera& cam, const Vec3& bmin,
+                           const Vec3& bmax, const glm::ivec3& res, const RaySampling& sampling) {
+  ViewBasis basis;
+  if (!make_basis(cam, &basis) || res.x < 1 || res.y < 1 || res.z < 1) return 0;
+  // Only objects that may meet the frustum can be hit.
+  const std::vector<ObjectId> in = frustum_objects(objects, cam);
+  // Nearest first, each with the least depth its box can have, so that a
+  // ray stops looking once nothing left can come nearer than its hit.
+  std::vector<Candidate> cands;
+  for (std::size_t i = 0; i < objects.size(); ++i) {
+    if (!std::binary_search(in.begin(), in.end(), objects[i].id)) continue;
+    const ObjectDesc& o = objects[i];
+    const Vec3 h = o.shape == Shape::Sphere ? Vec3(o.radius) : o.half_extent;
+    const Vec3& f = basis.f;
+    const double zmin = glm::dot(f, o.center - basis.eye) -
+                        (std::abs(f.x) * h.x + std::abs(f.y) * h.y + std::abs(f.z) * h.z);
+    cands.push_back({i, zmin});
+  }
+  std::sort(cands.begin(), cands.end(), [](const Candidate& a, const Candidate& b) { return a.zmin < b.zmin; });
+  const Vec3 vs = (bmax - bmin) / Vec3(res);
+  std::vector<char> seen(static_cast<std::size_t>(res.x) * static_cast<std::size_t>(res.y) *
+                             static_cast<std::size_t>(res.z),
+                         0);
+  std::size_t count = 0;
+  std::vector<std::size_t> hits;
+  for (int row = 0; row < sampling.rows; ++row)
+    for (int col = 0; col < sampling.cols; ++col) {
+      const double x = -1.0 + (2.0 * col + 1.0) / sampling.cols;
+      const double y = -1.0 + (2.0 * row + 1.0) / sampling.rows;
+      const Vec3 d = basis.ray_dir(x, y);
+      cast(objects, cands, basis, d, &hits);
+      double t_end = basis.far;
+      for (std::size_t h : hits) {
+        double t0 = 0.0, t1 = 0.0;
+        if (intersect(objects[h], basis.eye, d, &t0, &t1)) t_end = std::min(t_end, std::max(t0, basis.near));
+      }
+      // The segment [near, t_end] in grid units, clipped to the grid box.
+      const Vec3 o = (basis.eye - bmin) / vs;
+      const Vec3 g = d / vs;
+      double ta = basis.near, tb = t_end;
+      for (int a = 0; a < 3; ++a) {
+        if (g[a] == 0.0) {
+          if (o[a] < 0.0 || o[a] > res[a]) ta = kInf;
+          continue;
+        }
+        const double u = (0.0 - o[a]) / g[a], v = (res[a] - o[a]) / g[a];
+        ta = std::max(ta, std::min(u, v));
+        tb = std::min(tb, std::max(u, v));
+      }
+      if (!(ta <= tb)) continue;
+      // Amanatides-Woo through the voxels the segment meets.
+      glm::ivec3 cell, step;
+      Vec3 next, delta;
+      const Vec3 p = o + g * ta;
+      for (int a = 0; a < 3; ++a) {
+        cell[a] = std::clamp(static_cast<int>(std::floor(p[a])), 0, res[a] - 1);
+        step[a] = g[a] > 0.0 ? 1 : -1;
+        delta[a] = g[a] != 0.0 ? 1.0 / std::abs(g[a]) : kInf;
+        const double bound = g[a] > 0.0 ? cell[a] + 1.0 : cell[a];
+        next[a] = g[a] != 0.0 ? (bound - o[a]) / g[a] : kInf;
+      }
+      for (;;) {
+        const std::size_t idx = static_cast<std::size_t>(cell.x) +
+                                static_cast<std::size_t>(res.x) *
+                                    (static_cast<std::size_t>(cell.y) + static_cast<std::size_t>(res.y) * static_cast<std::size_t>(cell.z));
+        if (!seen[idx]) {
+          seen[idx] = 1;
+          ++count;
+        }
+        const int a = next.x < next.y ? (next.x < next.z ? 0 : 2) : (next.y < next.z ? 1 : 2);
+        if (next[a] > tb) break;
+        cell[a] += step[a];
+        if (cell[a] < 0 || cell[a] >= res[a]) break;
+        next[a] += delta[a];
+      }
+    }
+  return count;
+}
+
 bool project(const Camera& cam, const Vec3& p, double* x, double* y) {
   ViewBasis b;
   if (!make_basis(cam, &b)) return false;

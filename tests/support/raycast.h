@@ -102,6 +102,13 @@ bool project(const Camera& cam, const Vec3& p, double* x, double* y);
 /// a superset of visible_objects.
 std::vector<ObjectId> frustum_objects(const std::vector<ObjectDesc>& objects, const Camera& cam);
 
+/// How many voxels of the grid over [bmin, bmax] with `res` voxels a side
+/// the rays through the cell centres of `sampling` pass through, from the near
+/// plane up to and including their first hit (or the far plane): a sampled
+/// lower bound of the voxels in view, which a traversal must visit at least.
+std::size_t voxels_in_view(const std::vector<ObjectDesc>& objects, const Camera& cam, const Vec3& bmin,
+                           const Vec3& bmax, const glm::ivec3& res, const RaySampling& sampling);
+
 /// Ids in `visible` missing from `pvs` (both ascending).
 std::vector<ObjectId> missing_ids(const std::vector<ObjectId>& pvs,
                                   const std::vector<ObjectId>& visible);
