@@ -469,16 +469,16 @@ void BM_HiddenDynamic(benchmark::State& state, int n, int ob) {
 /// their TBVs still expire and are revealed). One iteration: 100 frames a
 /// viewer. Reports answers per second of wall time (all viewers) and the
 /// median frame time.
-void BM_Viewers(benchmark::State& state, Path which, glm::ivec3 grid, int viewers, bool moves) {
+void BM_Viewers(benchmark::State& state, Path which, glm::ivec3 grid, int viewers, bool moves, int ob) {
   constexpr int kFrames = 100;
   const Recording& rec = recording(which);
   SceneDesc desc = rec.scene;
   if (grid.x > 0) desc.grid = grid;
   std::unique_ptr<Scene> scene;
-  // The buffer off, as in docs/performance.md's table ("One scene, several
-  // viewers"), measured before the buffer became the default.
+  // The buffer off (the names without /ob:, as in docs/performance.md's
+  // first table, measured before the buffer became the default) or at `ob`.
   SceneOptions options;
-  options.occlusion_buffer = 0;
+  options.occlusion_buffer = ob;
   if (const Status st = Scene::create(desc, options, &scene); !st.ok) {
     state.SkipWithError(("Scene::create: " + st.str()).c_str());
     return;
@@ -560,25 +560,27 @@ void register_all() {
           ->Iterations(598)
           ->Unit(benchmark::kMicrosecond);
     }
-  // One scene, several viewers, each frame on its own thread.
-  for (int v : {1, 2, 4}) {
-    const std::string n = "/n:" + std::to_string(v);
-    benchmark::RegisterBenchmark(("viewers/voxel_world" + n).c_str(), BM_Viewers, Path::Surface,
-                                 glm::ivec3(0), v, false)
-        ->Iterations(3)
-        ->UseRealTime()
-        ->Unit(benchmark::kMillisecond);
-    benchmark::RegisterBenchmark(("viewers/walkthrough" + n).c_str(), BM_Viewers, Path::Walkthrough,
-                                 glm::ivec3(100, 60, 100), v, false)
-        ->Iterations(3)
-        ->UseRealTime()
-        ->Unit(benchmark::kMillisecond);
-    benchmark::RegisterBenchmark(("viewers/walkthrough/moves" + n).c_str(), BM_Viewers, Path::Walkthrough,
-                                 glm::ivec3(100, 60, 100), v, true)
-        ->Iterations(3)
-        ->UseRealTime()
-        ->Unit(benchmark::kMillisecond);
-  }
+  // One scene, several viewers, each frame on its own thread; the buffer
+  // off, and at the default width.
+  for (int ob : {0, 128})
+    for (int v : {1, 2, 4}) {
+      const std::string n = "/n:" + std::to_string(v) + suffix(ob);
+      benchmark::RegisterBenchmark(("viewers/voxel_world" + n).c_str(), BM_Viewers, Path::Surface,
+                                   glm::ivec3(0), v, false, ob)
+          ->Iterations(3)
+          ->UseRealTime()
+          ->Unit(benchmark::kMillisecond);
+      benchmark::RegisterBenchmark(("viewers/walkthrough" + n).c_str(), BM_Viewers, Path::Walkthrough,
+                                   glm::ivec3(100, 60, 100), v, false, ob)
+          ->Iterations(3)
+          ->UseRealTime()
+          ->Unit(benchmark::kMillisecond);
+      benchmark::RegisterBenchmark(("viewers/walkthrough/moves" + n).c_str(), BM_Viewers, Path::Walkthrough,
+                                   glm::ivec3(100, 60, 100), v, true, ob)
+          ->Iterations(3)
+          ->UseRealTime()
+          ->Unit(benchmark::kMillisecond);
+    }
   for (int ob : {0, 256})
     for (int n : {1000, 10000, 100000}) {
       const std::string name = "hidden_dynamic/n:" + std::to_string(n) + suffix(ob);
