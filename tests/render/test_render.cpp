@@ -147,6 +147,36 @@ TEST(Render, AgreesWithTheRayCasterAtPixelCentres) {
   EXPECT_LE(differ, pixels / 1000) << differ << " of " << pixels << " pixels differ over " << frames << " frames";
 }
 
+TEST(Render, HugeAndTinyCoordinatesRenderTheSameImage) {
+  // Coordinates go relative to the eye in double before they are rounded to
+  // float, so a scene moved far from the origin, or shrunk or grown by many
+  // orders of magnitude, renders as it does at home: the same id at (nearly)
+  // every pixel.
+  auto r = make_renderer();
+  ASSERT_TRUE(r);
+  constexpr int kW = 64, kH = 36;
+  const SceneDesc scene = random_scene(random_scene_params(31), 31);
+  const std::vector<Camera> path = random_camera_path(scene, 32);
+  const std::pair<double, Vec3> transforms[] = {
+      {1.0, Vec3(3e7, -2e7, 1e7)}, {1e-5, Vec3(0.25, -0.5, 0.125)}, {1e5, Vec3(-4e9, 1e9, 2e9)}};
+  std::string error;
+  VisibleStats st;
+  std::vector<ObjectId> vis;
+  for (std::size_t f = 0; f < path.size(); f += 8) {
+    ASSERT_TRUE(r->visible(scene.objects, path[f], VisibleOptions{kW, kH}, nullptr, &vis, &st, &error)) << error;
+    const std::vector<ObjectId> home = r->last_ids();
+    for (const auto& [scale, offset] : transforms) {
+      const SceneDesc moved = transform_scene(scene, scale, offset);
+      ASSERT_TRUE(r->visible(moved.objects, transform_camera(path[f], scale, offset), VisibleOptions{kW, kH},
+                             nullptr, &vis, &st, &error))
+          << error;
+      int differ = 0;
+      for (std::size_t p = 0; p < home.size(); ++p) differ += home[p] != r->last_ids()[p] ? 1 : 0;
+      EXPECT_LE(differ, kW * kH / 500) << "frame " << f << ", scale " << scale << ", offset " << offset.x;
+    }
+  }
+}
+
 TEST(Render, EyeInsideAnObjectSeesOnlyThatObject) {
   // The caster's convention: an object containing the eye is hit at depth
   // `near` on every ray, so it hides everything, also what lies inside it.
