@@ -16,100 +16,20 @@
 #define GL_GLEXT_PROTOTYPES 1
 #include <GL/glcorearb.h>
 
-#include "egl_context.h"
+#include "renderer_impl.h"
 #include "shaders.h"
 #include "voxvis/render.h"
 
 namespace voxvis::render {
 
+using detail::Basis;
+using detail::Clock;
+using detail::Instance;
+using detail::kFlushEvery;
+using detail::kMaxPixels;
+using detail::ms_since;
+
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double ms_since(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
-
-/// One object as the vertex shader reads it (32 bytes).
-struct Instance {
-  float centre[3];
-  float kind;  // 0 ball, 1 box.
-  float half[3];
-  std::uint32_t index;  // Instance number + 1; 0 in the id buffer is "nothing".
-};
-static_assert(sizeof(Instance) == 32);
-
-/// The camera's frame: f along the view, right and up across it, as the CPU
-/// ray caster builds it (tests/support/raycast.h).
-struct Basis {
-  glm::dvec3 eye, f, right, up;
-  double tanx = 1.0, tany = 1.0, near = 0.05, far = 1000.0;
-};
-
-bool make_basis(const Camera& cam, Basis* b, std::string* error) {
-  auto finite3 = [](const Vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); };
-  if (!finite3(cam.eye) || !finite3(cam.dir) || !finite3(cam.up) || !std::isfinite(cam.fov_y_deg) ||
-      !std::isfinite(cam.aspect) || !std::isfinite(cam.near) || !std::isfinite(cam.far)) {
-    *error = "camera: a value is not finite";
-    return false;
-  }
-  if (!(cam.fov_y_deg > 0.0 && cam.fov_y_deg < 180.0)) {
-    *error = "camera: fov_y_deg must be in (0, 180)";
-    return false;
-  }
-  if (!(cam.aspect > 0.0) || !(cam.near > 0.0) || !(cam.far > cam.near)) {
-    *error = "camera: needs aspect > 0 and 0 < near < far";
-    return false;
-  }
-  if (cam.far > 1e30) {
-    *error = "camera: far beyond 1e30 cannot be rendered in single precision";
-    return false;
-  }
-  const double dl = glm::length(cam.dir);
-  if (!(dl > 0.0)) {
-    *error = "camera: dir is zero";
-    return false;
-  }
-  b->f = cam.dir / dl;
-  const glm::dvec3 r = glm::cross(b->f, cam.up);
-  const double rl = glm::length(r);
-  if (!(rl > 1e-12 * glm::length(cam.up))) {
-    *error = "camera: up is parallel to dir";
-    return false;
-  }
-  b->right = r / rl;
-  b->up = glm::cross(b->right, b->f);
-  b->eye = cam.eye;
-  b->tany = std::tan(cam.fov_y_deg * (3.14159265358979323846 / 360.0));
-  b->tanx = cam.aspect * b->tany;
-  b->near = cam.near;
-  b->far = cam.far;
-  return true;
-}
-
-/// Whether the object may meet the frustum: rejected only when it lies wholly
-/// on the outer side of one of the six planes (conservative; a sphere is
-/// tested as a ball, a box as a box).
-bool may_meet_frustum(const Basis& b, const ObjectDesc& o) {
-  const glm::dvec3 c = o.center - b.eye;
-  const glm::dvec3 h = o.shape == Shape::Sphere ? glm::dvec3(o.radius) : o.half_extent;
-  // Planes as n . p <= k with p relative to the eye.
-  const std::array<std::pair<glm::dvec3, double>, 6> planes = {{
-      {b.right - b.tanx * b.f, 0.0},
-      {-b.right - b.tanx * b.f, 0.0},
-      {b.up - b.tany * b.f, 0.0},
-      {-b.up - b.tany * b.f, 0.0},
-      {-b.f, -b.near},
-      {b.f, b.far},
-  }};
-  for (const auto& [n, k] : planes) {
-    const double reach = o.shape == Shape::Sphere ? o.radius * glm::length(n)
-                                                  : std::abs(n.x) * h.x + std::abs(n.y) * h.y + std::abs(n.z) * h.z;
-    const double least = glm::dot(n, c) - reach;
-    const double tol = 1e-9 * (glm::length(c) * glm::length(n) + reach + std::abs(k)) + 1e-300;
-    if (least > k + tol) return false;
-  }
-  return true;
-}
 
 /// The compiler's or linker's log of a shader or program.
 std::string info_log(GLuint object, bool program) {
@@ -148,8 +68,6 @@ constexpr std::uint8_t kTriangles[36] = {
     1, 3, 5, 3, 7, 5,  // x = +1
 };
 
-constexpr int kFlushEvery = 512;       // Queries between flushes (long unflushed batches misreport on llvmpipe).
-constexpr std::int64_t kMaxPixels = std::int64_t{1} << 26;  // 64 Mpixel: 512 MiB of id and depth.
 
 }  // namespace
 
@@ -201,48 +119,6 @@ std::string ContextInfo::summary() const {
   s += gl_version;
   return s;
 }
-
-struct Renderer::Impl {
-  std::unique_ptr<detail::EglContext> egl;
-  ContextInfo info;
-  GLuint program = 0, vao = 0, corner_vbo = 0, index_ebo = 0, instance_vbo = 0;
-  GLuint fbo = 0, id_rb = 0, depth_rb = 0;
-  GLint u_right = -1, u_up = -1, u_f = -1, u_tan = -1, u_size = -1, u_range = -1;
-  int width = 0, height = 0;
-  std::size_t instance_capacity = 0;
-  std::vector<GLuint> queries;
-  std::vector<Instance> instances;
-  std::vector<ObjectId> drawn_ids;  // Instance number -> id.
-  std::vector<ObjectId> ids;        // Last id image.
-  std::vector<std::uint32_t> raw;
-
-  ~Impl() {
-    if (!egl) return;
-    std::string ignored;
-    if (egl->make_current(&ignored)) {
-      if (!queries.empty()) glDeleteQueries(static_cast<GLsizei>(queries.size()), queries.data());
-      glDeleteFramebuffers(1, &fbo);
-      glDeleteRenderbuffers(1, &id_rb);
-      glDeleteRenderbuffers(1, &depth_rb);
-      glDeleteBuffers(1, &corner_vbo);
-      glDeleteBuffers(1, &index_ebo);
-      glDeleteBuffers(1, &instance_vbo);
-      glDeleteVertexArrays(1, &vao);
-      glDeleteProgram(program);
-    }
-  }
-
-  bool setup(std::string* error);
-  bool resize(int w, int h, std::string* error);
-  bool gl_ok(const char* what, std::string* error) {
-    const GLenum e = glGetError();
-    if (e == GL_NO_ERROR) return true;
-    char code[16];
-    std::snprintf(code, sizeof code, "0x%04x", e);
-    *error = std::string("OpenGL error ") + code + " in " + what;
-    return false;
-  }
-};
 
 bool Renderer::Impl::setup(std::string* error) {
   GLint max_rb = 0, dims[2] = {0, 0};
@@ -353,69 +229,54 @@ std::unique_ptr<Renderer> Renderer::create(const ContextOptions& options, std::s
 const ContextInfo& Renderer::info() const { return impl_->info; }
 const std::vector<ObjectId>& Renderer::last_ids() const { return impl_->ids; }
 
-bool Renderer::visible(const std::vector<ObjectDesc>& objects, const Camera& cam, const VisibleOptions& options,
-                       const std::vector<ObjectId>* candidates, std::vector<ObjectId>* out,
-                       VisibleStats* stats, std::string* error) {
-  Impl& m = *impl_;
-  *stats = VisibleStats{};
-  out->clear();
-  const int w = options.width, h = options.height;
-  if (w < 1 || h < 1 || w > m.info.max_size || h > m.info.max_size ||
-      std::int64_t{w} * h > kMaxPixels) {
+bool Renderer::Impl::begin(const Camera& cam, int w, int h, Basis* b, std::string* error) {
+  if (w < 1 || h < 1 || w > info.max_size || h > info.max_size || std::int64_t{w} * h > kMaxPixels) {
     *error = "resolution " + std::to_string(w) + "x" + std::to_string(h) + " is out of range (each side 1 to " +
-             std::to_string(m.info.max_size) + " pixels, at most " + std::to_string(kMaxPixels) +
-             " pixels in all)";
+             std::to_string(info.max_size) + " pixels, at most " + std::to_string(kMaxPixels) + " pixels in all)";
     return false;
   }
-  Basis b;
-  if (!make_basis(cam, &b, error)) return false;
-  if (!m.egl->make_current(error)) return false;
-  if (!m.resize(w, h, error)) return false;
+  if (!make_basis(cam, b, error)) return false;
+  if (!egl->make_current(error)) return false;
+  return resize(w, h, error);
+}
 
-  // Instances: the objects the frustum may hold, relative to the eye in
-  // double before rounding to float, in the order given.
-  auto t0 = Clock::now();
-  m.instances.clear();
-  m.drawn_ids.clear();
-  for (const ObjectDesc& o : objects) {
-    if (!may_meet_frustum(b, o)) continue;
-    Instance in{};
-    const glm::dvec3 c = o.center - b.eye;
-    const glm::dvec3 hx = o.shape == Shape::Sphere ? glm::dvec3(o.radius) : o.half_extent;
-    for (int a = 0; a < 3; ++a) {
-      in.centre[a] = static_cast<float>(c[a]);
-      in.half[a] = static_cast<float>(hx[a]);
-    }
-    in.kind = o.shape == Shape::Sphere ? 0.0f : 1.0f;
-    m.drawn_ids.push_back(o.id);
-    in.index = static_cast<std::uint32_t>(m.drawn_ids.size());
-    m.instances.push_back(in);
+Instance Renderer::Impl::instance(const Basis& b, const Vec3& centre, const Vec3& half, bool box,
+                                  std::uint32_t index) {
+  // Relative to the eye in double before rounding to float.
+  Instance in{};
+  const glm::dvec3 c = centre - b.eye;
+  for (int a = 0; a < 3; ++a) {
+    in.centre[a] = static_cast<float>(c[a]);
+    in.half[a] = static_cast<float>(half[a]);
   }
-  const auto n = static_cast<GLsizei>(m.instances.size());
-  stats->in_frustum = static_cast<std::uint32_t>(n);
-  glBindBuffer(GL_ARRAY_BUFFER, m.instance_vbo);
-  if (m.instances.size() > m.instance_capacity) {
-    m.instance_capacity = std::max(m.instances.size(), 2 * m.instance_capacity);
-    glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(m.instance_capacity * sizeof(Instance)), nullptr,
+  in.kind = box ? 1.0f : 0.0f;
+  in.index = index;
+  return in;
+}
+
+void Renderer::Impl::upload() {
+  glBindBuffer(GL_ARRAY_BUFFER, instance_vbo);
+  if (instances.size() > instance_capacity) {
+    instance_capacity = std::max(instances.size(), 2 * instance_capacity);
+    glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(instance_capacity * sizeof(Instance)), nullptr,
                  GL_STREAM_DRAW);
   }
-  if (n > 0)
-    glBufferSubData(GL_ARRAY_BUFFER, 0, static_cast<GLsizeiptr>(m.instances.size() * sizeof(Instance)),
-                    m.instances.data());
-  stats->upload_ms = ms_since(t0);
+  if (!instances.empty())
+    glBufferSubData(GL_ARRAY_BUFFER, 0, static_cast<GLsizeiptr>(instances.size() * sizeof(Instance)),
+                    instances.data());
+}
 
-  // The depth and id pass.
-  t0 = Clock::now();
-  glBindFramebuffer(GL_FRAMEBUFFER, m.fbo);
+void Renderer::Impl::depth_pass(const Basis& b, int w, int h) {
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo);
   glViewport(0, 0, w, h);
-  glUseProgram(m.program);
-  glBindVertexArray(m.vao);
-  glUniform3f(m.u_right, static_cast<float>(b.right.x), static_cast<float>(b.right.y), static_cast<float>(b.right.z));
-  glUniform3f(m.u_up, static_cast<float>(b.up.x), static_cast<float>(b.up.y), static_cast<float>(b.up.z));
-  glUniform3f(m.u_f, static_cast<float>(b.f.x), static_cast<float>(b.f.y), static_cast<float>(b.f.z));
-  glUniform2f(m.u_tan, static_cast<float>(b.tanx), static_cast<float>(b.tany));
-  glUniform2f(m.u_size, static_cast<float>(w), static_cast<float>(h));
-  glUniform2f(m.u_range, static_cast<float>(b.near), static_cast<float>(b.far));
+  glUseProgram(program);
+  glBindVertexArray(vao);
+  glUniform3f(u_right, static_cast<float>(b.right.x), static_cast<float>(b.right.y), static_cast<float>(b.right.z));
+  glUniform3f(u_up, static_cast<float>(b.up.x), static_cast<float>(b.up.y), static_cast<float>(b.up.z));
+  glUniform3f(u_f, static_cast<float>(b.f.x), static_cast<float>(b.f.y), static_cast<float>(b.f.z));
+  glUniform2f(u_tan, static_cast<float>(b.tanx), static_cast<float>(b.tany));
+  glUniform2f(u_size, static_cast<float>(w), static_cast<float>(h));
+  glUniform2f(u_range, static_cast<float>(b.near), static_cast<float>(b.far));
   const GLuint zero[4] = {0, 0, 0, 0};
   glClearBufferuiv(GL_COLOR, 0, zero);
   const GLfloat far_depth = 1.0f;
@@ -423,7 +284,62 @@ bool Renderer::visible(const std::vector<ObjectDesc>& objects, const Camera& cam
   glDepthMask(GL_TRUE);
   glColorMaski(0, GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
   glDepthFunc(GL_LESS);
-  if (n > 0) glDrawElementsInstanced(GL_TRIANGLES, 36, GL_UNSIGNED_BYTE, nullptr, n);
+  if (!instances.empty())
+    glDrawElementsInstanced(GL_TRIANGLES, 36, GL_UNSIGNED_BYTE, nullptr, static_cast<GLsizei>(instances.size()));
+}
+
+void Renderer::Impl::begin_probes(std::size_t n) {
+  if (queries.size() < n) {
+    const std::size_t old = queries.size();
+    queries.resize(n);
+    glGenQueries(static_cast<GLsizei>(n - old), queries.data() + old);
+  }
+  glDepthMask(GL_FALSE);
+  glColorMaski(0, GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+  glDepthFunc(GL_LEQUAL);
+}
+
+void Renderer::Impl::probe(GLenum target, std::size_t q, std::size_t k) {
+  glBeginQuery(target, queries[q]);
+  glDrawElementsInstancedBaseInstance(GL_TRIANGLES, 36, GL_UNSIGNED_BYTE, nullptr, 1, static_cast<GLuint>(k));
+  glEndQuery(target);
+  if ((q + 1) % kFlushEvery == 0) glFlush();
+}
+
+void Renderer::Impl::end_probes() {
+  glDepthMask(GL_TRUE);
+  glColorMaski(0, GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+  glDepthFunc(GL_LESS);
+}
+
+bool Renderer::visible(const std::vector<ObjectDesc>& objects, const Camera& cam, const VisibleOptions& options,
+                       const std::vector<ObjectId>* candidates, std::vector<ObjectId>* out,
+                       VisibleStats* stats, std::string* error) {
+  Impl& m = *impl_;
+  *stats = VisibleStats{};
+  out->clear();
+  const int w = options.width, h = options.height;
+  Basis b;
+  if (!m.begin(cam, w, h, &b, error)) return false;
+
+  // Instances: the objects the frustum may hold, in the order given.
+  auto t0 = Clock::now();
+  m.instances.clear();
+  m.drawn_ids.clear();
+  for (const ObjectDesc& o : objects) {
+    if (!detail::may_meet_frustum(b, o)) continue;
+    m.drawn_ids.push_back(o.id);
+    m.instances.push_back(Impl::instance(b, o.center, o.shape == Shape::Sphere ? Vec3(o.radius) : o.half_extent,
+                                         o.shape == Shape::Box, static_cast<std::uint32_t>(m.drawn_ids.size())));
+  }
+  const auto n = static_cast<GLsizei>(m.instances.size());
+  stats->in_frustum = static_cast<std::uint32_t>(n);
+  m.upload();
+  stats->upload_ms = ms_since(t0);
+
+  // The depth and id pass.
+  t0 = Clock::now();
+  m.depth_pass(b, w, h);
   glFinish();
   stats->draw_ms = ms_since(t0);
   if (!m.gl_ok("the depth and id pass", error)) return false;
@@ -460,21 +376,9 @@ bool Renderer::visible(const std::vector<ObjectDesc>& objects, const Camera& cam
     std::vector<GLsizei> probe;
     for (GLsizei k = 0; k < n; ++k)
       if (wanted(m.drawn_ids[static_cast<std::size_t>(k)])) probe.push_back(k);
-    if (m.queries.size() < probe.size()) {
-      const std::size_t old = m.queries.size();
-      m.queries.resize(probe.size());
-      glGenQueries(static_cast<GLsizei>(probe.size() - old), m.queries.data() + old);
-    }
-    glDepthMask(GL_FALSE);
-    glColorMaski(0, GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
-    glDepthFunc(GL_LEQUAL);
-    for (std::size_t q = 0; q < probe.size(); ++q) {
-      glBeginQuery(GL_ANY_SAMPLES_PASSED, m.queries[q]);
-      glDrawElementsInstancedBaseInstance(GL_TRIANGLES, 36, GL_UNSIGNED_BYTE, nullptr, 1,
-                                          static_cast<GLuint>(probe[q]));
-      glEndQuery(GL_ANY_SAMPLES_PASSED);
-      if ((q + 1) % kFlushEvery == 0) glFlush();
-    }
+    m.begin_probes(probe.size());
+    for (std::size_t q = 0; q < probe.size(); ++q)
+      m.probe(GL_ANY_SAMPLES_PASSED, q, static_cast<std::size_t>(probe[q]));
     glFlush();
     stats->queries = static_cast<std::uint32_t>(probe.size());
     stats->query_ms = ms_since(t0);
@@ -485,9 +389,7 @@ bool Renderer::visible(const std::vector<ObjectDesc>& objects, const Camera& cam
       if (passed) out->push_back(m.drawn_ids[static_cast<std::size_t>(probe[q])]);
     }
     stats->read_ms = ms_since(t0);
-    glDepthMask(GL_TRUE);
-    glColorMaski(0, GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
-    glDepthFunc(GL_LESS);
+    m.end_probes();
     if (!m.gl_ok("the occlusion queries", error)) return false;
   }
   std::sort(out->begin(), out->end());
