@@ -266,7 +266,7 @@ void Renderer::Impl::upload() {
                     instances.data());
 }
 
-void Renderer::Impl::depth_pass(const Basis& b, int w, int h) {
+void Renderer::Impl::depth_pass(const Basis& b, int w, int h, std::ptrdiff_t count) {
   glBindFramebuffer(GL_FRAMEBUFFER, fbo);
   glViewport(0, 0, w, h);
   glUseProgram(program);
@@ -284,8 +284,8 @@ void Renderer::Impl::depth_pass(const Basis& b, int w, int h) {
   glDepthMask(GL_TRUE);
   glColorMaski(0, GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
   glDepthFunc(GL_LESS);
-  if (!instances.empty())
-    glDrawElementsInstanced(GL_TRIANGLES, 36, GL_UNSIGNED_BYTE, nullptr, static_cast<GLsizei>(instances.size()));
+  const auto n = static_cast<GLsizei>(count < 0 ? static_cast<std::ptrdiff_t>(instances.size()) : count);
+  if (n > 0) glDrawElementsInstanced(GL_TRIANGLES, 36, GL_UNSIGNED_BYTE, nullptr, n);
 }
 
 void Renderer::Impl::begin_probes(std::size_t n) {

@@ -3,11 +3,15 @@
 // refinement levels of voxvis/refine.h).
 #pragma once
 
+#include <array>
 #include <chrono>
+#include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <cstdio>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -154,9 +158,9 @@ struct Renderer::Impl {
                                    std::uint32_t index);
   /// Uploads `instances`.
   void upload();
-  /// Clears the framebuffer and draws every instance (ids and depth), with
-  /// the camera's uniforms; one draw call.
-  void depth_pass(const detail::Basis& b, int w, int h);
+  /// Clears the framebuffer and draws the first `count` instances (ids and
+  /// depth; all when count is -1), with the camera's uniforms; one draw call.
+  void depth_pass(const detail::Basis& b, int w, int h, std::ptrdiff_t count = -1);
   /// Query state: depth test LEQUAL, no writes; queries for `n` probes.
   void begin_probes(std::size_t n);
   /// Draws instance k alone inside query q (GL_SAMPLES_PASSED or

@@ -92,6 +92,9 @@ struct VisibleStats {
   double read_ms = 0.0;          ///< Waiting for and reading the results.
 };
 
+struct Level;        // voxvis/refine.h
+struct RefineStats;  // voxvis/refine.h
+
 class Renderer {
  public:
   /// Creates a context and its framebuffer resources. On failure returns
@@ -112,6 +115,13 @@ class Renderer {
   bool visible(const std::vector<ObjectDesc>& objects, const Camera& cam, const VisibleOptions& options,
                const std::vector<ObjectId>* candidates, std::vector<ObjectId>* out,
                VisibleStats* stats, std::string* error);
+
+  /// Refines `pvs` (ascending ids of `objects`) by `level` at width x
+  /// height: `out` is a subset of `pvs`, ascending (voxvis/refine.h says
+  /// what each level keeps). Errors as visible()'s.
+  bool refine(const Level& level, const std::vector<ObjectDesc>& objects, const Camera& cam, int width,
+              int height, const std::vector<ObjectId>& pvs, std::vector<ObjectId>* out, RefineStats* stats,
+              std::string* error);
 
   /// The id at every pixel of the last Method::Ids call (row 0 at the bottom,
   /// 0 where no object is hit), width * height values.
