@@ -66,6 +66,20 @@ struct VerifyArgs {
   bool quiet = false;
 };
 
+struct ReportArgs {
+  std::string scene;     ///< voxvis-scene/1 file.
+  std::string frames;    ///< Frames file, JSON Lines.
+  std::string configs;   ///< Configurations file; empty: the default sweep.
+  std::string out = "report";          ///< Output directory.
+  std::string resolution = "640x360";  ///< The exact reference's and the levels' pixels.
+  std::int64_t frame_count = -1;       ///< The first N frames; -1: all.
+  std::string egl_platform = "auto";
+  int egl_device = -1;
+  bool quiet = false;
+};
+
+int run_report(const ReportArgs& args);
+
 /// Exit status of `verify` when some visible object was missing from a PVS.
 inline constexpr int kExitMissed = 3;
 

@@ -142,6 +142,28 @@ int run(int argc, char** argv) {
       "Output: one line per frame, {\"frame\", \"visible\", \"missed\", \"pvs_size\", \"stats\"}.\n"
       "Exit status 3 when any visible object was missing from a PVS (docs/verify.md).");
 
+  // voxvis report
+  voxvis::cli::ReportArgs rep;
+  CLI::App* report_cmd = app.add_subcommand(
+      "report", "Run every configuration on the same frames: time per frame against tightness and misses.");
+  report_cmd->add_option("--scene", rep.scene, "Scene file (JSON, format voxvis-scene/1)")->required()->type_name("FILE");
+  report_cmd->add_option("--frames", rep.frames, "Frames file (JSON Lines)")->required()->type_name("FILE");
+  report_cmd->add_option("--configs", rep.configs, "Configurations (JSON); default: the standard sweep")
+      ->type_name("FILE");
+  report_cmd->add_option("--out", rep.out, "Output directory: report.json, report.md, tradeoff.png")
+      ->type_name("DIR")
+      ->capture_default_str();
+  report_cmd->add_option("--resolution", rep.resolution, "Pixels of the exact reference and of the levels")
+      ->type_name("WxH")
+      ->capture_default_str();
+  report_cmd->add_option("--frame-count", rep.frame_count, "Use the first N frames; -1: all")
+      ->type_name("N")
+      ->capture_default_str();
+  report_cmd->add_option("--egl-platform", rep.egl_platform, "EGL platform: auto, device or surfaceless")
+      ->type_name("NAME");
+  report_cmd->add_option("--egl-device", rep.egl_device, "EGL device index")->type_name("N");
+  report_cmd->add_flag("-q,--quiet", rep.quiet, "No progress bar or summary on stderr");
+
   // voxvis generate
   voxvis::cli::GenerateArgs gen;
   CLI::App* gen_cmd = app.add_subcommand(
@@ -297,6 +319,7 @@ int run(int argc, char** argv) {
     if (!take_tbv(verify_tbv_opt, verify_tbv, &verify.engine)) return voxvis::cli::report(bad_tbv);
     return voxvis::cli::run_verify(verify);
   }
+  if (report_cmd->parsed()) return voxvis::cli::run_report(rep);
   if (gen_cmd->parsed()) return voxvis::cli::run_generate(gen);
   if (load_cmd->parsed()) return voxvis::cli::run_load(load);
   if (scenes_cmd->parsed()) return voxvis::cli::run_scenes(scenes_net);

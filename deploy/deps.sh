@@ -9,6 +9,7 @@ VOXVIS_PACKAGES=(
   libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc grpc-proto prometheus-cpp-dev
   openssl
   libegl-dev libopengl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri
+  gnuplot-nox
 )
 
 voxvis_ensure_deps() {

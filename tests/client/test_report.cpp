@@ -1,0 +1,176 @@
+// `voxvis report`: its pure part in process (configurations, Pareto rows,
+// the table), and the command on a small scene: rows that agree with
+// `replay` and `verify` run by hand, a configuration that cannot run next to
+// ones that do, bad configuration files.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "cli_runner.h"
+#include "files.h"
+#include "report_model.h"
+#include "voxvis/format.h"
+#include "voxvis/generate.h"
+
+namespace voxvis::test {
+namespace {
+
+using cli::ReportConfig;
+using cli::ReportRow;
+using ::testing::HasSubstr;
+
+ReportRow row(const std::string& name, double ms, double tightness, std::uint64_t misses = 0) {
+  ReportRow r;
+  r.name = name;
+  r.median_ms = ms;
+  r.tightness = tightness;
+  r.misses = misses;
+  return r;
+}
+
+TEST(ReportModel, ParetoRowsAreThoseNoConservativeRowBeats) {
+  std::vector<ReportRow> rows = {row("fast loose", 1.0, 3.0),   row("slow tight", 10.0, 1.1),
+                                 row("dominated", 5.0, 3.5),    row("middle", 4.0, 1.5),
+                                 row("tie a", 4.0, 1.5),        row("misses", 0.5, 0.9, 12),
+                                 row("same time, looser", 1.0, 3.2)};
+  ReportRow failed = row("failed", 0.1, 0.1);
+  failed.error = "EGL: none";
+  rows.push_back(failed);
+  cli::mark_pareto(&rows);
+  std::vector<std::string> pareto;
+  for (const ReportRow& r : rows)
+    if (r.pareto) pareto.push_back(r.name);
+  EXPECT_EQ(pareto, (std::vector<std::string>{"fast loose", "slow tight", "middle", "tie a"}));
+
+  const std::string md = cli::report_markdown(rows, "64x36");
+  // Sorted by time, failed last, Pareto starred, misses flagged.
+  EXPECT_LT(md.find("| misses |"), md.find("| fast loose |"));
+  EXPECT_LT(md.find("| fast loose |"), md.find("| middle |"));
+  EXPECT_LT(md.find("| middle |"), md.find("| slow tight |"));
+  EXPECT_LT(md.find("| slow tight |"), md.find("| failed | could not run: EGL: none"));
+  EXPECT_THAT(md, HasSubstr("| fast loose | 1.00 | 0.00 | 0.00 | 3.000 | 0 | 0 | * |"));
+  EXPECT_THAT(md, HasSubstr("| dominated | 5.00 | 0.00 | 0.00 | 3.500 | 0 | 0 |  |"));
+}
+
+TEST(ReportModel, ConfigurationFilesAndTheirErrors) {
+  std::vector<ReportConfig> c;
+  std::string message;
+  ASSERT_TRUE(cli::parse_configs(
+      R"({"configs": [{"name": "a"}, {"name": "b", "grid": [10, 20, 30], "occlusion_buffer": 0, "level": "queries"}]})",
+      "c.json", &c, &message))
+      << message;
+  ASSERT_EQ(c.size(), 2u);
+  EXPECT_EQ(c[0].occlusion_buffer, 128);
+  EXPECT_EQ(c[0].level, "none");
+  EXPECT_FALSE(c[0].grid.has_value());
+  EXPECT_EQ(*c[1].grid, glm::ivec3(10, 20, 30));
+  EXPECT_EQ(c[1].occlusion_buffer, 0);
+  const std::pair<const char*, const char*> bad[] = {
+      {"[]", "c.json: expected {\"configs\": [ ... ]}"},
+      {R"({"configs": []})", "at least one configuration"},
+      {R"({"configs": [{"grid": [1, 2, 3]}]})", "c.json: configs[0].name: missing"},
+      {R"({"configs": [{"name": "a"}, {"name": "a"}]})", "configs[1].name: 'a' is used twice"},
+      {R"({"configs": [{"name": "a", "grid": [1, 2]}]})", "configs[0].grid: expected [NX, NY, NZ]"},
+      {R"({"configs": [{"name": "a", "grid": [1, 0, 3]}]})", "configs[0].grid: each resolution"},
+      {R"({"configs": [{"name": "a", "occlusion_buffer": 7}]})", "configs[0].occlusion_buffer: must be 0"},
+      {R"({"configs": [{"name": "a", "level": 3}]})", "configs[0].level: not a string"},
+      {R"({"configs": [{"name": "a", "colour": "red"}]})", "configs[0].colour: unknown field"},
+  };
+  for (const auto& [text, what] : bad) {
+    EXPECT_FALSE(cli::parse_configs(text, "c.json", &c, &message)) << text;
+    EXPECT_THAT(message, HasSubstr(what)) << text;
+  }
+  // The default sweep: buffer sizes, grids and levels, names unique.
+  const std::vector<ReportConfig> d = cli::default_configs(glm::ivec3(100, 60, 100));
+  ASSERT_GE(d.size(), 9u);
+  EXPECT_EQ(d[0].name, "buffer off");
+  bool half = false, levels = false;
+  for (const ReportConfig& x : d) {
+    half |= x.grid && *x.grid == glm::ivec3(50, 30, 50);
+    levels |= x.level == "hierarchical";
+  }
+  EXPECT_TRUE(half);
+  EXPECT_TRUE(levels);
+}
+
+class Report : public Cli {};
+
+TEST_F(Report, RowsAgreeWithReplayAndVerifyAndAFailedConfigurationLeavesTheOthers) {
+  PaperSceneParams p;
+  p.objects = 300;
+  p.dynamic = 30;
+  const SceneDesc scene = make_paper_scene(p);
+  WalkthroughParams w;
+  w.frames = 8;
+  spit(path("s.json"), scene_to_json(scene));
+  std::string frames;
+  for (const FrameInput& f : make_walkthrough(scene, w)) frames += frame_to_json(f) + "\n";
+  spit(path("f.jsonl"), frames);
+  spit(path("c.json"), R"({"configs": [
+    {"name": "off", "occlusion_buffer": 0},
+    {"name": "default"},
+    {"name": "queries", "level": "queries"},
+    {"name": "too big", "grid": [4096, 4096, 4096]}]})");
+  Result r = run({"report", "--scene", path("s.json"), "--frames", path("f.jsonl"), "--configs", path("c.json"),
+                  "--out", path("out"), "--resolution", "128x72", "-q"});
+  EXPECT_EQ(r.status, 2) << r.err;  // One configuration failed.
+  EXPECT_THAT(r.err, HasSubstr("configuration 'too big' could not run"));
+  const nlohmann::json rep = nlohmann::json::parse(slurp(path("out/report.json")));
+  ASSERT_EQ(rep["rows"].size(), 4u);
+  EXPECT_TRUE(rep["rows"][3].contains("error"));
+  EXPECT_EQ(slurp(path("out/tradeoff.png")).substr(1, 3), "PNG");
+  EXPECT_THAT(slurp(path("out/report.md")), HasSubstr("| too big | could not run:"));
+
+  // By hand: replay's PVS for "off", verify's exact set at the same pixels.
+  r = run({"replay", "--scene", path("s.json"), "--frames", path("f.jsonl"), "--occlusion-buffer", "0", "--out",
+           path("off.jsonl"), "-q"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  r = run({"verify", "--scene", path("s.json"), "--frames", path("f.jsonl"), "--pvs", path("off.jsonl"),
+           "--resolution", "128x72", "-q"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  std::uint64_t pvs = 0, visible = 0;
+  for (const std::string& l : lines_of(r.out)) {
+    const nlohmann::json j = nlohmann::json::parse(l);
+    pvs += j["pvs_size"].get<std::uint64_t>();
+    visible += j["visible"].size();
+  }
+  ASSERT_GT(visible, 0u);
+  EXPECT_EQ(rep["exactly_visible_total"].get<std::uint64_t>(), visible);
+  const nlohmann::json& off = rep["rows"][0];
+  EXPECT_EQ(off["name"], "off");
+  EXPECT_EQ(off["frames"].get<int>(), 8);
+  EXPECT_DOUBLE_EQ(off["tightness"].get<double>(), static_cast<double>(pvs) / static_cast<double>(visible));
+  EXPECT_EQ(off["misses"].get<int>(), 0);
+  // Refinement keeps every visible object and tightens.
+  const nlohmann::json& q = rep["rows"][2];
+  EXPECT_EQ(q["misses"].get<int>(), 0);
+  EXPECT_LT(q["tightness"].get<double>(), rep["rows"][1]["tightness"].get<double>());
+  EXPECT_GE(q["tightness"].get<double>(), 1.0);
+  EXPECT_GT(q["queries_per_frame"].get<double>(), 0.0);
+}
+
+TEST_F(Report, BadConfigurationFilesAreErrorsNamingTheEntry) {
+  spit(path("s.json"), scene_to_json(make_paper_scene(PaperSceneParams{})));
+  spit(path("f.jsonl"), "");
+  spit(path("c.json"), R"({"configs": [{"name": "x", "level": "magic"}]})");
+  Result r = run({"report", "--scene", path("s.json"), "--frames", path("f.jsonl"), "--configs", path("c.json"),
+                  "--out", path("out")});
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.err, HasSubstr("c.json: configs[0].level: unknown level 'magic'"));
+  spit(path("c.json"), R"({"configs": [{"name": "x", "occlusion_buffer": -1}]})");
+  r = run({"report", "--scene", path("s.json"), "--frames", path("f.jsonl"), "--configs", path("c.json")});
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.err, HasSubstr("configs[0].occlusion_buffer: must be 0"));
+  spit(path("c.json"), R"({"configs": [{"name": "x"}]})");
+  r = run({"report", "--scene", path("s.json"), "--frames", path("f.jsonl"), "--configs", path("c.json"),
+           "--out", path("out")});
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.err, HasSubstr("f.jsonl: no frames"));
+}
+
+}  // namespace
+}  // namespace voxvis::test
