@@ -79,6 +79,7 @@ int run_report(const ReportArgs& args) {
   render::ContextOptions ctx;
   if (!render::parse_platform(args.egl_platform, &ctx.platform, &message))
     return report(FormatError{"", 0, "--egl-platform", message});
+  if (args.egl_device < -1) return report(FormatError{"", 0, "--egl-device", "must be >= 0"});
   ctx.device = args.egl_device;
   if (args.frame_count < -1 || args.frame_count == 0)
     return report(FormatError{"", 0, "--frame-count", "must be >= 1 (or -1: all)"});

@@ -165,6 +165,12 @@ TEST_F(Report, BadConfigurationFilesAreErrorsNamingTheEntry) {
   r = run({"report", "--scene", path("s.json"), "--frames", path("f.jsonl"), "--configs", path("c.json")});
   EXPECT_EQ(r.status, 2);
   EXPECT_THAT(r.err, HasSubstr("configs[0].occlusion_buffer: must be 0"));
+  r = run({"report", "--scene", path("s.json"), "--frames", path("f.jsonl"), "--egl-device", "-2"});
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.err, HasSubstr("--egl-device: must be >= 0"));
+  r = run({"report", "--scene", path("s.json"), "--frames", path("f.jsonl"), "--resolution", "0x4"});
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.err, HasSubstr("--resolution: width and height must be >= 1"));
   spit(path("c.json"), R"({"configs": [{"name": "x"}]})");
   r = run({"report", "--scene", path("s.json"), "--frames", path("f.jsonl"), "--configs", path("c.json"),
            "--out", path("out")});
