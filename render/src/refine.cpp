@@ -2,7 +2,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <limits>
+#include <queue>
 #include <string>
 #include <unordered_map>
 #include <vector>
@@ -17,7 +19,7 @@ using detail::Clock;
 using detail::ms_since;
 
 bool parse_level(const std::string& text, Level* out, std::string* message) {
-  static const char* kKnown = " (known: none, queries, hierarchical, adaptive:N)";
+  static const char* kKnown = " (known: none, queries, hierarchical, lazy-grid, adaptive:N)";
   Level l;
   if (text == "none") {
     l.kind = LevelKind::None;
@@ -25,6 +27,8 @@ bool parse_level(const std::string& text, Level* out, std::string* message) {
     l.kind = LevelKind::Queries;
   } else if (text == "hierarchical") {
     l.kind = LevelKind::Hierarchical;
+  } else if (text == "lazy-grid") {
+    l.kind = LevelKind::LazyGrid;
   } else if (text.rfind("adaptive:", 0) == 0) {
     const std::string n = text.substr(9);
     if (n.empty() || n.size() > 7 || n.find_first_not_of("0123456789") != std::string::npos ||
@@ -47,6 +51,7 @@ std::string level_name(const Level& level) {
     case LevelKind::None: return "none";
     case LevelKind::Queries: return "queries";
     case LevelKind::Hierarchical: return "hierarchical";
+    case LevelKind::LazyGrid: return "lazy-grid";
     case LevelKind::Adaptive: return "adaptive:" + std::to_string(level.min_pixels);
   }
   return "?";
@@ -98,6 +103,148 @@ std::int32_t build(std::vector<Node>& nodes, std::vector<std::uint32_t>& order, 
 
 }  // namespace
 
+namespace {
+
+constexpr int kCell = 16;  // Pixels a side of a cell of the lazy grid.
+
+/// The pixels a box may cover, [x0, x1] x [y0, y1] (clamped to the image),
+/// and its least depth as the depth buffer stores it (t / far, hits clipped
+/// to near). False when the box lies wholly outside the image.
+bool screen_rect(const Basis& b, int width, int height, const glm::dvec3& lo, const glm::dvec3& hi, int* x0, int* y0,
+                 int* x1, int* y1, float* znear) {
+  double zmin = std::numeric_limits<double>::infinity();
+  double xmin = zmin, ymin = zmin, xmax = -zmin, ymax = -zmin;
+  bool behind = false;
+  for (int c = 0; c < 8; ++c) {
+    const glm::dvec3 p = glm::dvec3(c & 1 ? hi.x : lo.x, c & 2 ? hi.y : lo.y, c & 4 ? hi.z : lo.z) - b.eye;
+    const double z = glm::dot(p, b.f);
+    zmin = std::min(zmin, z);
+    if (!(z > b.near * 0.5)) {
+      behind = true;  // Projection unbounded: the whole image.
+      continue;
+    }
+    const double x = glm::dot(p, b.right) / (z * b.tanx), y = glm::dot(p, b.up) / (z * b.tany);
+    xmin = std::min(xmin, x);
+    xmax = std::max(xmax, x);
+    ymin = std::min(ymin, y);
+    ymax = std::max(ymax, y);
+  }
+  // Stored depths are single precision: a margin keeps the comparison
+  // conservative for a box whose nearest point is a hit point.
+  *znear = static_cast<float>(std::max(zmin, b.near) / b.far * (1.0 - 1e-5));
+  if (behind) {
+    *x0 = *y0 = 0;
+    *x1 = width - 1;
+    *y1 = height - 1;
+    return true;
+  }
+  // Pixel i samples x = -1 + (2i+1)/W: the centres inside [xmin, xmax], one
+  // pixel of margin each side for rounding.
+  const double fx0 = (xmin + 1.0) * 0.5 * width - 0.5, fx1 = (xmax + 1.0) * 0.5 * width - 0.5;
+  const double fy0 = (ymin + 1.0) * 0.5 * height - 0.5, fy1 = (ymax + 1.0) * 0.5 * height - 0.5;
+  if (fx1 < -1.0 || fy1 < -1.0 || fx0 > width || fy0 > height) return false;
+  *x0 = static_cast<int>(std::max(0.0, std::floor(fx0) - 1.0));
+  *y0 = static_cast<int>(std::max(0.0, std::floor(fy0) - 1.0));
+  *x1 = static_cast<int>(std::min(width - 1.0, std::ceil(fx1) + 1.0));
+  *y1 = static_cast<int>(std::min(height - 1.0, std::ceil(fy1) + 1.0));
+  return *x0 <= *x1 && *y0 <= *y1;
+}
+
+}  // namespace
+
+/// Hey et al.'s lazy occlusion grid (z-buffer variant) over the PVS's
+/// objects, whose instances are uploaded and whose hierarchy is `nodes`.
+bool lazy_grid(Renderer::Impl& m, const Basis& b, int width, int height, const std::vector<Node>& nodes,
+               const std::vector<std::uint32_t>& order, const std::vector<glm::dvec3>& lo,
+               const std::vector<glm::dvec3>& hi, std::vector<ObjectId>* out, RefineStats* stats, std::string* error) {
+  auto t0 = Clock::now();
+  m.upload();
+  m.depth_pass(b, width, height, 0);  // Cleared to the far depth; nothing drawn yet.
+  stats->draw_ms += ms_since(t0);
+  if (nodes.empty()) return m.gl_ok("the lazy grid", error);
+  const int gx = (width + kCell - 1) / kCell, gy = (height + kCell - 1) / kCell;
+  std::vector<float> zfar(static_cast<std::size_t>(gx) * static_cast<std::size_t>(gy), 1.0f);
+  std::vector<char> outdated(zfar.size(), 0);
+  std::vector<float> pixels(static_cast<std::size_t>(kCell) * kCell);
+  ++stats->levels;
+
+  // Whether the rectangle may show something at depth >= znear: cells known
+  // to be free enough first, then the outdated ones, each read back once.
+  auto occluded = [&](int x0, int y0, int x1, int y1, float znear) {
+    const int c0 = x0 / kCell, c1 = x1 / kCell, r0 = y0 / kCell, r1 = y1 / kCell;
+    for (int r = r0; r <= r1; ++r)
+      for (int c = c0; c <= c1; ++c) {
+        const std::size_t i = static_cast<std::size_t>(r) * static_cast<std::size_t>(gx) + static_cast<std::size_t>(c);
+        if (!outdated[i] && zfar[i] >= znear) return false;
+      }
+    for (int r = r0; r <= r1; ++r)
+      for (int c = c0; c <= c1; ++c) {
+        const std::size_t i = static_cast<std::size_t>(r) * static_cast<std::size_t>(gx) + static_cast<std::size_t>(c);
+        if (!outdated[i]) continue;
+        const auto t = Clock::now();
+        const int px = c * kCell, py = r * kCell;
+        const int cw = std::min(kCell, width - px), ch = std::min(kCell, height - py);
+        glReadPixels(px, py, cw, ch, GL_DEPTH_COMPONENT, GL_FLOAT, pixels.data());
+        float far_depth = 0.0f;
+        for (int k = 0; k < cw * ch; ++k) far_depth = std::max(far_depth, pixels[static_cast<std::size_t>(k)]);
+        zfar[i] = far_depth;
+        outdated[i] = 0;
+        ++stats->queries;
+        stats->pixels += static_cast<std::uint64_t>(cw * ch);
+        stats->wait_ms += ms_since(t);
+        if (zfar[i] >= znear) return false;
+      }
+    return true;
+  };
+
+  // Front to back by least depth: boxes of the hierarchy and objects in one
+  // queue; a box not occluded opens its children, an object not occluded is
+  // drawn (depth and id) and kept, and the cells under it go out of date.
+  struct Entry {
+    float znear;
+    std::int32_t node;    // >= 0: a box of the hierarchy.
+    std::uint32_t object;  // When node < 0: the object's instance.
+    int x0, y0, x1, y1;
+    bool operator>(const Entry& o) const { return znear > o.znear; }
+  };
+  std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> queue;
+  auto push = [&](std::int32_t node, std::uint32_t object) {
+    const glm::dvec3& l = node >= 0 ? nodes[static_cast<std::size_t>(node)].lo : lo[object];
+    const glm::dvec3& h = node >= 0 ? nodes[static_cast<std::size_t>(node)].hi : hi[object];
+    Entry e{0.0f, node, object, 0, 0, 0, 0};
+    if (screen_rect(b, width, height, l, h, &e.x0, &e.y0, &e.x1, &e.y1, &e.znear)) queue.push(e);
+  };
+  push(0, 0);
+  glDepthMask(GL_TRUE);
+  glDepthFunc(GL_LESS);
+  while (!queue.empty()) {
+    const Entry e = queue.top();
+    queue.pop();
+    if (occluded(e.x0, e.y0, e.x1, e.y1, e.znear)) continue;
+    if (e.node >= 0) {
+      const Node& nd = nodes[static_cast<std::size_t>(e.node)];
+      if (nd.left >= 0) {
+        push(nd.left, 0);
+        push(nd.right, 0);
+      } else {
+        for (std::uint32_t i = nd.first; i < nd.first + nd.count; ++i) push(-1, order[i]);
+      }
+      continue;
+    }
+    const auto t = Clock::now();
+    glDrawElementsInstancedBaseInstance(GL_TRIANGLES, 36, GL_UNSIGNED_BYTE, nullptr, 1, e.object);
+    ++stats->draw_calls;
+    stats->draw_ms += ms_since(t);
+    out->push_back(m.drawn_ids[e.object]);
+    for (int r = e.y0 / kCell; r <= e.y1 / kCell; ++r)
+      for (int c = e.x0 / kCell; c <= e.x1 / kCell; ++c)
+        outdated[static_cast<std::size_t>(r) * static_cast<std::size_t>(gx) + static_cast<std::size_t>(c)] = 1;
+  }
+  if (!m.gl_ok("the lazy grid", error)) return false;
+  std::sort(out->begin(), out->end());
+  return true;
+}
+
 bool Renderer::refine(const Level& level, const std::vector<ObjectDesc>& objects, const Camera& cam, int width,
                       int height, const std::vector<ObjectId>& pvs, std::vector<ObjectId>* out, RefineStats* stats,
                       std::string* error) {
@@ -143,10 +290,13 @@ bool Renderer::refine(const Level& level, const std::vector<ObjectDesc>& objects
   std::vector<Node> nodes;
   std::vector<std::uint32_t> order;
   std::vector<std::size_t> node_instance;
-  if (level.kind == LevelKind::Hierarchical && n > 0) {
+  if ((level.kind == LevelKind::Hierarchical || level.kind == LevelKind::LazyGrid) && n > 0) {
     order.resize(n);
     for (std::uint32_t i = 0; i < n; ++i) order[i] = i;
     build(nodes, order, lo, hi, 0, static_cast<std::uint32_t>(n));
+  }
+  if (level.kind == LevelKind::LazyGrid) return lazy_grid(m, b, width, height, nodes, order, lo, hi, out, stats, error);
+  if (level.kind == LevelKind::Hierarchical && n > 0) {
     node_instance.resize(nodes.size());
     for (std::size_t k = 0; k < nodes.size(); ++k) {
       const Node& nd = nodes[k];

@@ -37,7 +37,7 @@ TEST(Refine, LevelsKeepEveryVisibleObjectOfTheirInput) {
   auto r = Renderer::create(render::ContextOptions{}, &error);
   ASSERT_TRUE(r) << error;
   constexpr int kW = 96, kH = 54;
-  int frames = 0, tightened = 0;
+  int frames = 0, tightened = 0, lazy_tightened = 0;
   for (std::uint64_t seed = 1; seed <= 4; ++seed) {
     const SceneDesc scene = random_scene(random_scene_params(seed), seed);
     std::unique_ptr<Scene> engine;
@@ -57,7 +57,7 @@ TEST(Refine, LevelsKeepEveryVisibleObjectOfTheirInput) {
       for (ObjectId id : r->last_ids()) ++pixels[id];
       const std::string where = "seed " + std::to_string(seed) + " frame " + std::to_string(f);
       std::vector<ObjectId> by_queries;
-      for (const char* name : {"none", "queries", "hierarchical", "adaptive:4"}) {
+      for (const char* name : {"none", "queries", "hierarchical", "lazy-grid", "adaptive:4"}) {
         const Level l = level(name);
         std::vector<ObjectId> out;
         RefineStats st;
@@ -84,14 +84,20 @@ TEST(Refine, LevelsKeepEveryVisibleObjectOfTheirInput) {
         if (l.kind == LevelKind::Hierarchical) {
           EXPECT_EQ(out, by_queries) << where;
         }
-        if (l.kind != LevelKind::None) {
-          EXPECT_GE(st.draw_calls, st.queries);
+        if (l.kind == LevelKind::LazyGrid) {
+          // Coarser than a query per object: never tighter than it.
+          EXPECT_TRUE(std::includes(out.begin(), out.end(), by_queries.begin(), by_queries.end())) << where;
+          lazy_tightened += out.size() < fr.pvs.size() ? 1 : 0;
+        }
+        if (l.kind != LevelKind::None && l.kind != LevelKind::LazyGrid) {
+          EXPECT_GE(st.draw_calls, st.queries);  // Each query draws its probe.
         }
       }
       ++frames;
     }
   }
   EXPECT_GT(tightened, frames / 4) << "queries tightened " << tightened << " of " << frames << " PVSs";
+  EXPECT_GT(lazy_tightened, 0) << "the lazy grid tightened none of " << frames << " PVSs";
 }
 
 TEST(Refine, TheHierarchySkipsTheObjectsOfHiddenBoxes) {
@@ -115,6 +121,14 @@ TEST(Refine, TheHierarchySkipsTheObjectsOfHiddenBoxes) {
   EXPECT_EQ(tree, flat);
   EXPECT_EQ(st_flat.queries, 201u);
   EXPECT_LT(st_tree.queries, 20u) << st_tree.queries << " queries in " << st_tree.levels << " rounds";
+  // The lazy grid: the wall drawn first (nearest), then the crowd's boxes
+  // found behind it after a few cells are read back.
+  std::vector<ObjectId> lazy;
+  RefineStats st_lazy;
+  ASSERT_TRUE(r->refine(level("lazy-grid"), objects, cam, 64, 64, pvs, &lazy, &st_lazy, &error)) << error;
+  EXPECT_EQ(lazy, flat);
+  EXPECT_EQ(st_lazy.draw_calls, 1u);  // The wall alone.
+  EXPECT_LE(st_lazy.queries, 16u) << "cells read back";
 }
 
 TEST(Refine, BadLevelsAndIdsAreErrors) {

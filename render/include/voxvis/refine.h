@@ -11,6 +11,12 @@
 //                 over the PVS's objects first, level by level, descending
 //                 only into boxes that show; objects of hidden boxes are
 //                 dropped without a query of their own
+//   lazy-grid     Hey et al.: the PVS's objects front to back through the
+//                 same hierarchy, each box and object tested against a coarse
+//                 grid of the depth buffer's farthest depth per cell (16x16
+//                 pixels), a cell read back only when a test needs it after
+//                 something was drawn over it; what is not occluded is drawn
+//                 and kept. Few readbacks, no per-object query.
 //   adaptive:N    Bartz et al.'s approximate culling: objects with fewer than
 //                 N visible pixels are dropped too. The only level that may
 //                 drop a visible object (one under N pixels), and says so.
@@ -28,14 +34,15 @@
 
 namespace voxvis::render {
 
-enum class LevelKind { None, Queries, Hierarchical, Adaptive };
+enum class LevelKind { None, Queries, Hierarchical, LazyGrid, Adaptive };
 
 struct Level {
   LevelKind kind = LevelKind::None;
   std::uint32_t min_pixels = 0;  ///< Adaptive: objects with fewer visible pixels are dropped.
 };
 
-/// "none", "queries", "hierarchical" or "adaptive:N" (N pixels, 1 to 1e6);
+/// "none", "queries", "hierarchical", "lazy-grid" or "adaptive:N" (N
+/// pixels, 1 to 1e6);
 /// on error sets `message` (naming the known levels).
 bool parse_level(const std::string& text, Level* out, std::string* message);
 std::string level_name(const Level& level);
@@ -45,7 +52,7 @@ inline bool level_may_miss(const Level& level) { return level.kind == LevelKind:
 /// What a refinement cost. Times are wall-clock milliseconds on the calling
 /// thread: issuing the depth pass and the queries, and waiting for results.
 struct RefineStats {
-  std::uint32_t queries = 0;      ///< Occlusion queries issued.
+  std::uint32_t queries = 0;      ///< Occlusion queries issued (lazy-grid: cells read back).
   std::uint32_t draw_calls = 0;   ///< Draw calls, the depth pass's included.
   std::uint64_t pixels = 0;       ///< Samples the queries counted as passing.
   std::uint32_t levels = 0;       ///< Rounds of queries (hierarchical: tree levels).

@@ -127,8 +127,10 @@ class Renderer {
   /// 0 where no object is hit), width * height values.
   const std::vector<ObjectId>& last_ids() const;
 
- private:
+  /// The internals (render/src/renderer_impl.h), for the passes' own files.
   struct Impl;
+
+ private:
   explicit Renderer(std::unique_ptr<Impl> impl);
   std::unique_ptr<Impl> impl_;
 };
