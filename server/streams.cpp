@@ -327,6 +327,10 @@ class ViewReactor final
         if (svc_->verify_sample()) check.emplace(ready->result);
       }
     }
+    // Once mu_ is released another thread may end and delete this stream
+    // (unless `del` says this job is the last): what the check needs after
+    // it is copied first. The service, the entry and `p` outlive the stream.
+    Service* const svc = svc_;
     const std::uint64_t frame = p.frame;
     const std::string viewer = check ? client_ + " viewer " + std::to_string(viewer_) : std::string();
     bool del;
@@ -342,7 +346,7 @@ class ViewReactor final
       del = end_job_locked();
     }
     // The answer is handed over; the check runs on the verifier's thread.
-    if (check) svc_->verify_served(e, viewer, frame, p.camera, *check);
+    if (check) svc->verify_served(e, viewer, frame, p.camera, *check);
     if (del) release();
   }
 
