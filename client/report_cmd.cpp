@@ -5,7 +5,6 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -14,6 +13,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -26,6 +26,8 @@
 #include "voxvis/refine.h"
 #include "voxvis/render.h"
 #include "voxvis/scene.h"
+
+extern char** environ;
 
 namespace voxvis::cli {
 namespace {
@@ -68,6 +70,31 @@ std::string plot_script(const std::string& title, bool conservative, bool front,
          "set key top right\n"
          "set offsets graph 0.02, graph 0.3, 0, 0\n"
          "set datafile separator '\\t'\n" + plot + "\n";
+}
+
+/// Runs `gnuplot tradeoff.gp` in `dir` (no shell: any directory name is
+/// safe); on failure says why.
+bool run_gnuplot(const std::filesystem::path& dir, std::string* why) {
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addchdir_np(&actions, dir.c_str());
+  char prog[] = "gnuplot", script[] = "tradeoff.gp";
+  char* argv[] = {prog, script, nullptr};
+  pid_t pid = 0;
+  const int rc = posix_spawnp(&pid, "gnuplot", &actions, nullptr, argv, environ);
+  posix_spawn_file_actions_destroy(&actions);
+  if (rc != 0) {
+    *why = std::string("cannot run gnuplot: ") + std::strerror(rc) + " (install gnuplot-nox)";
+    return false;
+  }
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+    *why = "gnuplot failed (exit " + std::to_string(WIFEXITED(status) ? WEXITSTATUS(status) : -1) + ")";
+    return false;
+  }
+  return true;
 }
 
 }  // namespace
@@ -305,13 +332,10 @@ int run_report(const ReportArgs& args) {
   if (data.empty() && missing.empty()) {
     std::fprintf(stderr, "voxvis: no plot: no configuration has a tightness (no EGL reference)\n");
   } else {
-    const std::string cmd = "cd '" + dir.string() + "' && gnuplot tradeoff.gp";
-    const int rc = std::system(cmd.c_str());
-    if (rc != 0) {
-      std::fprintf(stderr,
-                   "voxvis: error: gnuplot failed (exit %d) making %s/tradeoff.png: is gnuplot-nox installed? "
-                   "(report.json and report.md are written)\n",
-                   WIFEXITED(rc) ? WEXITSTATUS(rc) : -1, dir.string().c_str());
+    std::string why;
+    if (!run_gnuplot(dir, &why)) {
+      std::fprintf(stderr, "voxvis: error: %s/tradeoff.png: %s (report.json and report.md are written)\n",
+                   dir.string().c_str(), why.c_str());
       status = kExitError;
     }
   }

@@ -17,6 +17,8 @@
 #include <gtest/gtest.h>
 
 #include "files.h"
+#include "voxvis/format.h"
+#include "voxvis/generate.h"
 
 extern char** environ;
 
@@ -42,6 +44,22 @@ class Cli : public ::testing::Test {
   }
 
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
+
+  /// Writes a paper-like scene (voxvis generate's preset) and its
+  /// walkthrough to `scene` and `frames` in the temporary directory.
+  void write_paper(const std::string& scene, const std::string& frames, int objects, int dynamic,
+                   int frame_count) {
+    PaperSceneParams p;
+    p.objects = objects;
+    p.dynamic = dynamic;
+    const SceneDesc desc = make_paper_scene(p);
+    WalkthroughParams w;
+    w.frames = frame_count;
+    spit(path(scene), scene_to_json(desc));
+    std::string text;
+    for (const FrameInput& f : make_walkthrough(desc, w)) text += frame_to_json(f) + "\n";
+    spit(path(frames), text);
+  }
 
   /// Runs the CLI with `args`; stdout and stderr captured through files.
   /// `env` (NAME=value entries) is added to the environment.

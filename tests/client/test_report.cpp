@@ -100,16 +100,7 @@ TEST(ReportModel, ConfigurationFilesAndTheirErrors) {
 class Report : public Cli {};
 
 TEST_F(Report, RowsAgreeWithReplayAndVerifyAndAFailedConfigurationLeavesTheOthers) {
-  PaperSceneParams p;
-  p.objects = 300;
-  p.dynamic = 30;
-  const SceneDesc scene = make_paper_scene(p);
-  WalkthroughParams w;
-  w.frames = 8;
-  spit(path("s.json"), scene_to_json(scene));
-  std::string frames;
-  for (const FrameInput& f : make_walkthrough(scene, w)) frames += frame_to_json(f) + "\n";
-  spit(path("f.jsonl"), frames);
+  write_paper("s.json", "f.jsonl", 300, 30, 8);
   spit(path("c.json"), R"({"configs": [
     {"name": "off", "occlusion_buffer": 0},
     {"name": "default"},
@@ -176,6 +167,18 @@ TEST_F(Report, BadConfigurationFilesAreErrorsNamingTheEntry) {
            "--out", path("out")});
   EXPECT_EQ(r.status, 2);
   EXPECT_THAT(r.err, HasSubstr("f.jsonl: no frames"));
+}
+
+TEST_F(Report, WithoutGnuplotTheTablesAreStillWritten) {
+  write_paper("s.json", "f.jsonl", 100, 0, 3);
+  spit(path("c.json"), R"({"configs": [{"name": "default"}]})");
+  const Result r = run({"report", "--scene", path("s.json"), "--frames", path("f.jsonl"), "--configs",
+                        path("c.json"), "--out", path("it's here"), "--resolution", "64x36", "-q"},
+                       {"PATH=/nonexistent"});
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.err, HasSubstr("tradeoff.png: cannot run gnuplot"));
+  EXPECT_THAT(r.err, HasSubstr("install gnuplot-nox"));
+  EXPECT_THAT(slurp(path("it's here/report.md")), HasSubstr("| default |"));
 }
 
 }  // namespace

@@ -43,19 +43,8 @@ class Verify : public Cli {
     }
     spit(path(frames), text);
   }
-  /// A paper-like scene with moving objects, `frames` frames.
-  void write_paper(int frames) {
-    PaperSceneParams p;
-    p.objects = 600;
-    p.dynamic = 60;
-    const SceneDesc scene = make_paper_scene(p);
-    WalkthroughParams w;
-    w.frames = frames;
-    spit(path("paper.json"), scene_to_json(scene));
-    std::string text;
-    for (const FrameInput& f : make_walkthrough(scene, w)) text += frame_to_json(f) + "\n";
-    spit(path("paper.jsonl"), text);
-  }
+  /// paper.json and paper.jsonl: 600 spheres, 60 of them moving.
+  void write_paper(int frames) { Cli::write_paper("paper.json", "paper.jsonl", 600, 60, frames); }
   /// The parsed output lines; checks their shape.
   std::vector<nlohmann::json> lines(const std::string& out) {
     std::vector<nlohmann::json> v;
