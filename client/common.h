@@ -53,10 +53,6 @@ class Progress {
   Clock::time_point last_ = Clock::now();
 };
 
-/// Parses "WIDTHxHEIGHT" (each from 1 to 999999999 pixels); on error sets
-/// `message`.
-bool parse_resolution(const std::string& text, int* w, int* h, std::string* message);
-
 /// Prints "voxvis: error: <message>" on stderr and returns kExitError.
 int report_message(const std::string& message);
 

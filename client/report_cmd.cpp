@@ -102,7 +102,7 @@ bool run_gnuplot(const std::filesystem::path& dir, std::string* why) {
 int run_report(const ReportArgs& args) {
   std::string message;
   int w = 0, h = 0;
-  if (!parse_resolution(args.resolution, &w, &h, &message)) return report(FormatError{"", 0, "--resolution", message});
+  if (!render::parse_resolution(args.resolution, &w, &h, &message)) return report(FormatError{"", 0, "--resolution", message});
   render::ContextOptions ctx;
   if (!render::parse_platform(args.egl_platform, &ctx.platform, &message))
     return report(FormatError{"", 0, "--egl-platform", message});

@@ -121,7 +121,7 @@ std::string ms(double v) {
 int run_verify(const VerifyArgs& args) {
   int w = 0, h = 0;
   std::string message;
-  if (!parse_resolution(args.resolution, &w, &h, &message)) return report(FormatError{"", 0, "--resolution", message});
+  if (!render::parse_resolution(args.resolution, &w, &h, &message)) return report(FormatError{"", 0, "--resolution", message});
   render::Method method;
   if (!render::parse_method(args.method, &method, &message)) return report(FormatError{"", 0, "--method", message});
   render::ContextOptions ctx;

@@ -306,18 +306,6 @@ class PrometheusMetrics final : public Metrics {
   std::map<std::string, std::shared_ptr<PrometheusSceneMetrics>> scenes_by_id_;
 };
 
-class NullSceneMetrics final : public SceneMetrics {
- public:
-  void frame(const FrameStats&, double) override {}
-  void skipped(std::uint32_t) override {}
-  void moves(std::uint32_t) override {}
-  void wake_size(std::size_t) override {}
-  void tbvs_active(std::uint32_t) override {}
-  void viewers(int) override {}
-  void verified(std::size_t) override {}
-  void verify_dropped() override {}
-};
-
 class NullMetrics final : public Metrics {
  public:
   std::shared_ptr<SceneMetrics> scene(const std::string&) override { return handle_; }

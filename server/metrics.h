@@ -60,6 +60,20 @@ class Metrics {
   virtual int port() const { return 0; }
 };
 
+/// Handles that record nothing (no --metrics); a base for test doubles that
+/// record only what they look at.
+class NullSceneMetrics : public SceneMetrics {
+ public:
+  void frame(const FrameStats&, double) override {}
+  void skipped(std::uint32_t) override {}
+  void moves(std::uint32_t) override {}
+  void wake_size(std::size_t) override {}
+  void tbvs_active(std::uint32_t) override {}
+  void viewers(int) override {}
+  void verified(std::size_t) override {}
+  void verify_dropped() override {}
+};
+
 /// Metrics served over HTTP at `address` ("127.0.0.1:9464"). Throws
 /// std::runtime_error naming the address when it cannot listen.
 std::unique_ptr<Metrics> make_prometheus_metrics(const std::string& address);

@@ -99,15 +99,9 @@ class ServerImpl final : public Server {
       return fail(error, "--verify-fraction must be within [0, 1]");
     vc.fraction = config_.verify_fraction;
     {
-      const std::string& r = config_.verify_resolution;
-      const std::size_t x = r.find('x');
-      const auto digits = [](const std::string& d) {
-        return !d.empty() && d.size() <= 5 && d.find_first_not_of("0123456789") == std::string::npos;
-      };
-      if (x == std::string::npos || !digits(r.substr(0, x)) || !digits(r.substr(x + 1)) ||
-          (vc.width = std::stoi(r.substr(0, x))) < 1 || (vc.height = std::stoi(r.substr(x + 1))) < 1)
-        return fail(error, "--verify-resolution must be WIDTHxHEIGHT, each >= 1 (for example 320x180), got '" +
-                               r + "'");
+      std::string message;
+      if (!render::parse_resolution(config_.verify_resolution, &vc.width, &vc.height, &message))
+        return fail(error, "--verify-resolution: " + message);
     }
     if (config_.verify_queue < 1) return fail(error, "--verify-queue must be >= 1");
     vc.queue = static_cast<std::size_t>(config_.verify_queue);

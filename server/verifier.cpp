@@ -33,6 +33,7 @@ std::unique_ptr<Verifier> Verifier::start(const VerifyConfig& config, Log log, s
   v->thread_ = std::thread([raw = v.get(), ready = std::move(ready)]() mutable {
     std::string err;
     std::unique_ptr<render::Renderer> r = render::Renderer::create(raw->config_.context, &err);
+    if (!r) err = "EGL: " + err;
     if (r && (raw->config_.width > r->info().max_size || raw->config_.height > r->info().max_size))
       err = "--verify-resolution " + std::to_string(raw->config_.width) + "x" + std::to_string(raw->config_.height) +
             " exceeds this OpenGL's limit of " + std::to_string(r->info().max_size) + " pixels a side";
@@ -59,7 +60,7 @@ std::unique_ptr<Verifier> Verifier::start(const VerifyConfig& config, Log log, s
   *error = outcome.get();
   if (!error->empty()) {
     v->thread_.join();
-    *error = "verify mode: EGL: " + *error;
+    *error = "verify mode: " + *error;
     return nullptr;
   }
   return v;

@@ -101,6 +101,24 @@ bool parse_method(const std::string& text, Method* out, std::string* message) {
   return true;
 }
 
+bool parse_resolution(const std::string& text, int* w, int* h, std::string* message) {
+  const std::size_t x = text.find('x');
+  auto number = [](const std::string& s, int* v) {
+    if (s.empty() || s.size() > 9 || s.find_first_not_of("0123456789") != std::string::npos) return false;
+    *v = std::stoi(s);
+    return true;
+  };
+  if (x == std::string::npos || !number(text.substr(0, x), w) || !number(text.substr(x + 1), h)) {
+    *message = "expected WIDTHxHEIGHT in pixels (for example 640x360), got '" + text + "'";
+    return false;
+  }
+  if (*w < 1 || *h < 1) {
+    *message = "width and height must be >= 1, got '" + text + "'";
+    return false;
+  }
+  return true;
+}
+
 const char* method_name(Method m) { return m == Method::Ids ? "ids" : "queries"; }
 
 std::string ContextInfo::summary() const {

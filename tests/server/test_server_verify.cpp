@@ -29,14 +29,8 @@ using server::Verifier;
 using server::VerifyJob;
 
 /// Counts what the verifier reports.
-class CountingMetrics final : public server::SceneMetrics {
+class CountingMetrics final : public server::NullSceneMetrics {
  public:
-  void frame(const FrameStats&, double) override {}
-  void skipped(std::uint32_t) override {}
-  void moves(std::uint32_t) override {}
-  void wake_size(std::size_t) override {}
-  void tbvs_active(std::uint32_t) override {}
-  void viewers(int) override {}
   void verified(std::size_t missed) override {
     ++frames;
     objects_missed += missed;
@@ -118,16 +112,20 @@ TEST(Verifier, CountsAndLogsTheMissesOfACutPvs) {
 }
 
 TEST(Verifier, AFullQueueDropsAndCounts) {
+  // One place in the queue and renders of 2048x2048 (a 16 MB readback each,
+  // milliseconds on any device): fifty jobs handed over back to back, in far
+  // less time than one render, cannot all find a place.
   VerifyConfig c;
   c.fraction = 1.0;
   c.queue = 1;
+  c.width = c.height = 2048;
   std::string error;
   auto v = Verifier::start(c, [](const std::string&) {}, &error);
   ASSERT_TRUE(v) << error;
   auto m = std::make_shared<CountingMetrics>();
   VerifyJob job;
   job.scene = "s";
-  job.camera = test::camera_along(Vec3(0.0), Vec3(0, 0, -1));
+  job.camera = test::camera_along(Vec3(50.0, 30.0, -20.0), Vec3(0, 0, 1));
   const SceneDesc scene = make_paper_scene(PaperSceneParams{});
   job.objects = scene.objects;
   std::sort(job.objects.begin(), job.objects.end(),
@@ -196,10 +194,14 @@ TEST(ServerVerify, BadSettingsAreStartErrors) {
         std::vector<std::string>{"--verify-fraction", "-0.1"},
         std::vector<std::string>{"--verify-resolution", "0x10"},
         std::vector<std::string>{"--verify-resolution", "wide"},
-        std::vector<std::string>{"--verify-queue", "0"}, std::vector<std::string>{"--egl-platform", "x11"}}) {
-    ServerProcess server(args);
+        std::vector<std::string>{"--verify-resolution", "50000x10"},  // Beyond the OpenGL's limit.
+        std::vector<std::string>{"--verify-queue", "0"}, std::vector<std::string>{"--egl-platform", "x11"},
+        std::vector<std::string>{"--verify-fraction", "1", "--egl-device", "9", "--egl-platform", "device"}}) {
+    std::vector<std::string> with = args;
+    if (args[0] == "--verify-resolution") with.insert(with.end(), {"--verify-fraction", "0.5"});
+    ServerProcess server(with);
     EXPECT_FALSE(server.start()) << args[0] << " " << args[1];
-    EXPECT_THAT(server.log(), HasSubstr(args[0])) << server.log();
+    EXPECT_THAT(server.log(), HasSubstr(args.size() > 2 ? args[2] : args[0])) << server.log();
   }
   // A machine without EGL cannot verify: said at start, not at the first frame.
   ServerProcess server({"--verify-fraction", "0.1"});

@@ -74,6 +74,10 @@ enum class Method {
 };
 
 bool parse_method(const std::string& text, Method* out, std::string* message);
+
+/// Parses "WIDTHxHEIGHT" in pixels (each >= 1; the context's limit is
+/// checked when rendering); on error sets `message`.
+bool parse_resolution(const std::string& text, int* width, int* height, std::string* message);
 const char* method_name(Method m);
 
 struct VisibleOptions {
