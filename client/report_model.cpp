@@ -89,7 +89,7 @@ std::vector<ReportConfig> default_configs(const glm::ivec3& g) {
   };
   v.push_back(ReportConfig{grid_name(half) + ", buffer 128", half, 128, "none"});
   v.push_back(ReportConfig{grid_name(twice) + ", buffer 128", twice, 128, "none"});
-  for (const char* level : {"queries", "hierarchical", "lazy-grid", "adaptive:4"})
+  for (const char* level : {"queries", "hierarchical", "lazy-grid", "ternary", "near-optimal", "adaptive:4"})
     v.push_back(ReportConfig{std::string("buffer 128 + ") + level, std::nullopt, 128, level});
   return v;
 }

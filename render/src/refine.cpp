@@ -9,17 +9,34 @@
 #include <unordered_map>
 #include <vector>
 
+#include "refine_common.h"
 #include "renderer_impl.h"
 #include "voxvis/refine.h"
 
 namespace voxvis::render {
 
 using detail::Basis;
+using detail::Node;
+using detail::screen_rect;
 using detail::Clock;
 using detail::ms_since;
 
 bool parse_level(const std::string& text, Level* out, std::string* message) {
-  static const char* kKnown = " (known: none, queries, hierarchical, lazy-grid, adaptive:N)";
+  static const char* kKnown =
+      " (known: none, queries, hierarchical, lazy-grid, ternary, near-optimal, near-optimal:T, adaptive:N)";
+  // A count after "name:", from lo to hi; false (with the message) otherwise.
+  auto count = [&](const std::string& name, std::size_t at, unsigned long lo, unsigned long hi, const char* what,
+                   const char* letter, std::uint32_t* value) {
+    const std::string n = text.substr(at);
+    if (n.empty() || n.size() > 8 || n.find_first_not_of("0123456789") != std::string::npos || std::stoul(n) < lo ||
+        std::stoul(n) > hi) {
+      *message = "level '" + text + "': " + name + " needs " + what + " from " + std::to_string(lo) + " to " +
+                 std::to_string(hi) + ", as " + name + ":" + letter;
+      return false;
+    }
+    *value = static_cast<std::uint32_t>(std::stoul(n));
+    return true;
+  };
   Level l;
   if (text == "none") {
     l.kind = LevelKind::None;
@@ -29,15 +46,16 @@ bool parse_level(const std::string& text, Level* out, std::string* message) {
     l.kind = LevelKind::Hierarchical;
   } else if (text == "lazy-grid") {
     l.kind = LevelKind::LazyGrid;
+  } else if (text == "ternary") {
+    l.kind = LevelKind::Ternary;
+  } else if (text == "near-optimal") {
+    l.kind = LevelKind::NearOptimal;
+  } else if (text.rfind("near-optimal:", 0) == 0) {
+    l.kind = LevelKind::NearOptimal;
+    if (!count("near-optimal", 13, 1, 10000000, "a triangle count T per object", "T", &l.triangles)) return false;
   } else if (text.rfind("adaptive:", 0) == 0) {
-    const std::string n = text.substr(9);
-    if (n.empty() || n.size() > 7 || n.find_first_not_of("0123456789") != std::string::npos ||
-        std::stoul(n) < 1 || std::stoul(n) > 1000000) {
-      *message = "level '" + text + "': adaptive needs a pixel count N from 1 to 1000000, as adaptive:N";
-      return false;
-    }
     l.kind = LevelKind::Adaptive;
-    l.min_pixels = static_cast<std::uint32_t>(std::stoul(n));
+    if (!count("adaptive", 9, 1, 1000000, "a pixel count N", "N", &l.min_pixels)) return false;
   } else {
     *message = "unknown level '" + text + "'" + kKnown;
     return false;
@@ -52,26 +70,54 @@ std::string level_name(const Level& level) {
     case LevelKind::Queries: return "queries";
     case LevelKind::Hierarchical: return "hierarchical";
     case LevelKind::LazyGrid: return "lazy-grid";
+    case LevelKind::Ternary: return "ternary";
+    case LevelKind::NearOptimal:
+      return level.triangles == Level{}.triangles ? "near-optimal" : "near-optimal:" + std::to_string(level.triangles);
     case LevelKind::Adaptive: return "adaptive:" + std::to_string(level.min_pixels);
   }
   return "?";
 }
 
-namespace {
+namespace detail {
 
-/// A node of the hierarchy over the PVS's objects: a box around its
-/// children, or (first == last - 1 and leaf) one object.
-struct Node {
-  glm::dvec3 lo, hi;
-  std::uint32_t first = 0, count = 0;  // Objects [first, first + count) of the ordering.
-  std::int32_t left = -1, right = -1;  // Children; -1 for a leaf.
-};
+bool pvs_instances(Renderer::Impl& m, const Basis& b, const std::vector<ObjectDesc>& objects,
+                   const std::vector<ObjectId>& pvs, std::vector<glm::dvec3>* lo, std::vector<glm::dvec3>* hi,
+                   std::string* error) {
+  std::unordered_map<ObjectId, std::size_t> at;
+  at.reserve(objects.size());
+  for (std::size_t i = 0; i < objects.size(); ++i) at.emplace(objects[i].id, i);
+  m.instances.clear();
+  m.drawn_ids.clear();
+  lo->clear();
+  hi->clear();
+  for (ObjectId id : pvs) {
+    const auto it = at.find(id);
+    if (it == at.end()) {
+      *error = "pvs: id " + std::to_string(id) + " is not an object of the scene";
+      return false;
+    }
+    const ObjectDesc& o = objects[it->second];
+    if (!may_meet_frustum(b, o)) continue;
+    const Vec3 half = o.shape == Shape::Sphere ? Vec3(o.radius) : o.half_extent;
+    m.drawn_ids.push_back(id);
+    m.instances.push_back(Renderer::Impl::instance(b, o.center, half, o.shape == Shape::Box,
+                                                   static_cast<std::uint32_t>(m.drawn_ids.size())));
+    lo->push_back(o.center - half);
+    hi->push_back(o.center + half);
+  }
+  return true;
+}
 
-constexpr std::uint32_t kLeafObjects = 4;  // Below this, a node's children are its objects.
+Instance query_box(const Basis& b, const glm::dvec3& lo, const glm::dvec3& hi) {
+  const glm::dvec3 c = 0.5 * (lo + hi);
+  const glm::dvec3 h = 0.5 * (hi - lo);
+  const double grow = 1e-5 * glm::length(c - b.eye) + 1e-30;
+  return Renderer::Impl::instance(b, c, h * (1.0 + 1e-4) + glm::dvec3(grow), true, 0);
+}
 
-/// Median split on the longest axis of the centres, recursively.
-std::int32_t build(std::vector<Node>& nodes, std::vector<std::uint32_t>& order, const std::vector<glm::dvec3>& lo,
-                   const std::vector<glm::dvec3>& hi, std::uint32_t first, std::uint32_t count) {
+std::int32_t build_hierarchy(std::vector<Node>& nodes, std::vector<std::uint32_t>& order,
+                             const std::vector<glm::dvec3>& lo, const std::vector<glm::dvec3>& hi,
+                             std::uint32_t first, std::uint32_t count) {
   Node n;
   n.first = first;
   n.count = count;
@@ -93,23 +139,15 @@ std::int32_t build(std::vector<Node>& nodes, std::vector<std::uint32_t>& order, 
     const std::uint32_t half = count / 2;
     std::nth_element(order.begin() + first, order.begin() + first + half, order.begin() + first + count,
                      [&](std::uint32_t a, std::uint32_t b) { return lo[a][axis] + hi[a][axis] < lo[b][axis] + hi[b][axis]; });
-    const std::int32_t l = build(nodes, order, lo, hi, first, half);
-    const std::int32_t r = build(nodes, order, lo, hi, first + half, count - half);
+    const std::int32_t l = build_hierarchy(nodes, order, lo, hi, first, half);
+    const std::int32_t r = build_hierarchy(nodes, order, lo, hi, first + half, count - half);
     nodes[static_cast<std::size_t>(index)].left = l;
     nodes[static_cast<std::size_t>(index)].right = r;
   }
   return index;
 }
 
-}  // namespace
 
-namespace {
-
-constexpr int kCell = 16;  // Pixels a side of a cell of the lazy grid.
-
-/// The pixels a box may cover, [x0, x1] x [y0, y1] (clamped to the image),
-/// and its least depth as the depth buffer stores it (t / far, hits clipped
-/// to near). False when the box lies wholly outside the image.
 bool screen_rect(const Basis& b, int width, int height, const glm::dvec3& lo, const glm::dvec3& hi, int* x0, int* y0,
                  int* x1, int* y1, float* znear) {
   double zmin = std::numeric_limits<double>::infinity();
@@ -150,7 +188,11 @@ bool screen_rect(const Basis& b, int width, int height, const glm::dvec3& lo, co
   return *x0 <= *x1 && *y0 <= *y1;
 }
 
-}  // namespace
+}  // namespace detail
+
+namespace {
+
+constexpr int kCell = 16;  // Pixels a side of a cell of the lazy grid.
 
 /// Hey et al.'s lazy occlusion grid (z-buffer variant) over the PVS's
 /// objects, whose instances are uploaded and whose hierarchy is `nodes`.
@@ -245,12 +287,19 @@ bool lazy_grid(Renderer::Impl& m, const Basis& b, int width, int height, const s
   return true;
 }
 
+}  // namespace
+
 bool Renderer::refine(const Level& level, const std::vector<ObjectDesc>& objects, const Camera& cam, int width,
                       int height, const std::vector<ObjectId>& pvs, std::vector<ObjectId>* out, RefineStats* stats,
                       std::string* error) {
   Impl& m = *impl_;
   *stats = RefineStats{};
   out->clear();
+  if (level.kind == LevelKind::NearOptimal && !m.refine.model) {
+    // Measured (or loaded) before the frame's camera takes the framebuffer.
+    std::string note;
+    if (!m.egl->make_current(error) || !m.ensure_model(&note, error)) return false;
+  }
   Basis b;
   if (!m.begin(cam, width, height, &b, error)) return false;
   if (level.kind == LevelKind::None) {
@@ -258,53 +307,32 @@ bool Renderer::refine(const Level& level, const std::vector<ObjectDesc>& objects
     return true;
   }
 
+  if (level.kind == LevelKind::Ternary) return detail::refine_ternary(m, b, width, height, objects, pvs, out, stats, error);
+  if (level.kind == LevelKind::NearOptimal)
+    return detail::refine_near_optimal(m, level, b, width, height, objects, pvs, out, stats, error);
+
   // The PVS's objects that may meet the frustum: the occluders, and the
   // candidates. The others cannot show.
-  std::unordered_map<ObjectId, std::size_t> at;
-  at.reserve(objects.size());
-  for (std::size_t i = 0; i < objects.size(); ++i) at.emplace(objects[i].id, i);
-  m.instances.clear();
-  m.drawn_ids.clear();
   std::vector<glm::dvec3> lo, hi;
-  for (ObjectId id : pvs) {
-    const auto it = at.find(id);
-    if (it == at.end()) {
-      *error = "pvs: id " + std::to_string(id) + " is not an object of the scene";
-      return false;
-    }
-    const ObjectDesc& o = objects[it->second];
-    if (!detail::may_meet_frustum(b, o)) continue;
-    const Vec3 half = o.shape == Shape::Sphere ? Vec3(o.radius) : o.half_extent;
-    m.drawn_ids.push_back(id);
-    m.instances.push_back(Impl::instance(b, o.center, half, o.shape == Shape::Box,
-                                         static_cast<std::uint32_t>(m.drawn_ids.size())));
-    lo.push_back(o.center - half);
-    hi.push_back(o.center + half);
-  }
+  if (!detail::pvs_instances(m, b, objects, pvs, &lo, &hi, error)) return false;
   const std::size_t n = m.instances.size();
 
-  // Hierarchical: the boxes of the inner nodes go after the objects, grown
-  // by more than single-precision rounding, so that a box is entered no
-  // later than any object inside it on every ray (else a box could hide in
-  // the depth buffer behind its own visible object).
+  // Hierarchical: the boxes of the inner nodes go after the objects (query
+  // boxes, grown).
   std::vector<Node> nodes;
   std::vector<std::uint32_t> order;
   std::vector<std::size_t> node_instance;
   if ((level.kind == LevelKind::Hierarchical || level.kind == LevelKind::LazyGrid) && n > 0) {
     order.resize(n);
     for (std::uint32_t i = 0; i < n; ++i) order[i] = i;
-    build(nodes, order, lo, hi, 0, static_cast<std::uint32_t>(n));
+    build_hierarchy(nodes, order, lo, hi, 0, static_cast<std::uint32_t>(n));
   }
   if (level.kind == LevelKind::LazyGrid) return lazy_grid(m, b, width, height, nodes, order, lo, hi, out, stats, error);
   if (level.kind == LevelKind::Hierarchical && n > 0) {
     node_instance.resize(nodes.size());
     for (std::size_t k = 0; k < nodes.size(); ++k) {
-      const Node& nd = nodes[k];
-      const glm::dvec3 c = 0.5 * (nd.lo + nd.hi);
-      const glm::dvec3 h = 0.5 * (nd.hi - nd.lo);
-      const double grow = 1e-5 * glm::length(c - b.eye) + 1e-30;
       node_instance[k] = m.instances.size();
-      m.instances.push_back(Impl::instance(b, c, h * (1.0 + 1e-4) + glm::dvec3(grow), true, 0));
+      m.instances.push_back(detail::query_box(b, nodes[k].lo, nodes[k].hi));
     }
   }
 

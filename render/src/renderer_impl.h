@@ -20,6 +20,7 @@
 #include <GL/glcorearb.h>
 
 #include "egl_context.h"
+#include "refine_state.h"
 #include "voxvis/render.h"
 
 namespace voxvis::render::detail {
@@ -131,6 +132,7 @@ struct Renderer::Impl {
   std::vector<ObjectId> drawn_ids;  // Instance number -> id.
   std::vector<ObjectId> ids;        // Last id image.
   std::vector<std::uint32_t> raw;
+  detail::RefineState refine;      // The refinement levels' state between frames.
 
   ~Impl() {
     if (!egl) return;
@@ -167,6 +169,8 @@ struct Renderer::Impl {
   /// GL_ANY_SAMPLES_PASSED), flushing every kFlushEvery.
   void probe(GLenum target, std::size_t q, std::size_t k);
   void end_probes();
+  /// Near-optimal's cost model, loaded or measured on first use (cost_model.cpp).
+  bool ensure_model(std::string* note, std::string* error);
   bool gl_ok(const char* what, std::string* error) {
     const GLenum e = glGetError();
     if (e == GL_NO_ERROR) return true;

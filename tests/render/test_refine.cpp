@@ -5,13 +5,16 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iterator>
 #include <cstdint>
 #include <map>
 #include <memory>
 #include <string>
 #include <vector>
 
-#include "raycast.h"
 #include "scenes.h"
 #include "voxvis/refine.h"
 #include "voxvis/render.h"
@@ -37,8 +40,13 @@ TEST(Refine, LevelsKeepEveryVisibleObjectOfTheirInput) {
   auto r = Renderer::create(render::ContextOptions{}, &error);
   ASSERT_TRUE(r) << error;
   constexpr int kW = 96, kH = 54;
-  int frames = 0, tightened = 0, lazy_tightened = 0;
+  int frames = 0, tightened = 0, lazy_tightened = 0, ternary_tightened = 0;
+  // A model of this machine (measured into a scratch file, not the user's).
+  render::CostModel model;
+  std::string note;
+  ASSERT_TRUE(r->cost_model(::testing::TempDir() + "refine-cost-model.json", &model, &note, &error)) << error;
   for (std::uint64_t seed = 1; seed <= 4; ++seed) {
+    r->reset_refinement();  // A new scene: ternary's tree and near-optimal's states start afresh.
     const SceneDesc scene = random_scene(random_scene_params(seed), seed);
     std::unique_ptr<Scene> engine;
     ASSERT_TRUE(Scene::create(scene, SceneOptions{}, &engine).ok);
@@ -57,7 +65,7 @@ TEST(Refine, LevelsKeepEveryVisibleObjectOfTheirInput) {
       for (ObjectId id : r->last_ids()) ++pixels[id];
       const std::string where = "seed " + std::to_string(seed) + " frame " + std::to_string(f);
       std::vector<ObjectId> by_queries;
-      for (const char* name : {"none", "queries", "hierarchical", "lazy-grid", "adaptive:4"}) {
+      for (const char* name : {"none", "queries", "hierarchical", "lazy-grid", "ternary", "near-optimal", "adaptive:4"}) {
         const Level l = level(name);
         std::vector<ObjectId> out;
         RefineStats st;
@@ -89,6 +97,12 @@ TEST(Refine, LevelsKeepEveryVisibleObjectOfTheirInput) {
           EXPECT_TRUE(std::includes(out.begin(), out.end(), by_queries.begin(), by_queries.end())) << where;
           lazy_tightened += out.size() < fr.pvs.size() ? 1 : 0;
         }
+        if (l.kind == LevelKind::Ternary || l.kind == LevelKind::NearOptimal) {
+          // Fewer occluders (ternary: those drawn so far) or fewer queries
+          // (near-optimal): never tighter than a query per object.
+          EXPECT_TRUE(std::includes(out.begin(), out.end(), by_queries.begin(), by_queries.end())) << where << name;
+          if (l.kind == LevelKind::Ternary) ternary_tightened += out.size() < fr.pvs.size() ? 1 : 0;
+        }
         if (l.kind != LevelKind::None && l.kind != LevelKind::LazyGrid) {
           EXPECT_GE(st.draw_calls, st.queries);  // Each query draws its probe.
         }
@@ -98,6 +112,185 @@ TEST(Refine, LevelsKeepEveryVisibleObjectOfTheirInput) {
   }
   EXPECT_GT(tightened, frames / 4) << "queries tightened " << tightened << " of " << frames << " PVSs";
   EXPECT_GT(lazy_tightened, 0) << "the lazy grid tightened none of " << frames << " PVSs";
+  EXPECT_GT(ternary_tightened, 0) << "the ternary tree tightened none of " << frames << " PVSs";
+}
+
+/// A wall at z = -10 in front of a crowd of 200 small balls (ids 2..201),
+/// seen from the origin down -z.
+struct WallAndCrowd {
+  std::vector<ObjectDesc> objects = {box_between(1, Vec3(-50, -50, -11), Vec3(50, 50, -10))};
+  std::vector<ObjectId> pvs = {1};
+  std::vector<ObjectId> crowd;
+  Camera cam = camera_along(Vec3(0.0), Vec3(0, 0, -1), 60.0, 1.0);
+  WallAndCrowd() {
+    for (int i = 0; i < 200; ++i) {
+      const auto id = static_cast<ObjectId>(i + 2);
+      objects.push_back(sphere(id, Vec3(i % 20 - 10, i / 20 - 5, -20.0 - i % 7), 0.4));
+      pvs.push_back(id);
+      crowd.push_back(id);
+    }
+  }
+};
+
+TEST(Refine, TheTernaryTreeDrawsWhatShowsAndAdaptsToWhatIsHidden) {
+  std::string error;
+  auto r = Renderer::create(render::ContextOptions{}, &error);
+  ASSERT_TRUE(r) << error;
+  WallAndCrowd s;
+  // A dense cluster of 40 small balls in front of the crowd, ids 300..339.
+  std::vector<ObjectId> with_cluster = s.crowd;
+  for (int i = 0; i < 40; ++i) {
+    const auto id = static_cast<ObjectId>(300 + i);
+    s.objects.push_back(sphere(id, Vec3(5.2 + 0.2 * (i % 4), 2.2 + 0.2 * (i / 4 % 5), -15.0 - 0.3 * (i / 20)), 0.1));
+    with_cluster.push_back(id);
+  }
+  // The crowd alone, in full view: the first tree, leaves under 12 objects.
+  std::vector<ObjectId> out, flat;
+  RefineStats first, st;
+  ASSERT_TRUE(r->refine(level("ternary"), s.objects, s.cam, 64, 64, s.crowd, &out, &first, &error)) << error;
+  ASSERT_TRUE(r->refine(level("queries"), s.objects, s.cam, 64, 64, s.crowd, &flat, &st, &error)) << error;
+  EXPECT_EQ(out, flat);
+  EXPECT_GT(first.levels, 0u) << "no query waited for a nearer overlapping one";
+  // The cluster joins: its leaf shows (ratio >= 0.25) with >= 12 objects and
+  // splits, a level a frame.
+  RefineStats grown;
+  for (int frame = 0; frame < 3; ++frame) {
+    ASSERT_TRUE(r->refine(level("ternary"), s.objects, s.cam, 64, 64, with_cluster, &out, &grown, &error)) << error;
+    ASSERT_TRUE(r->refine(level("queries"), s.objects, s.cam, 64, 64, with_cluster, &flat, &st, &error)) << error;
+    EXPECT_TRUE(std::includes(out.begin(), out.end(), flat.begin(), flat.end())) << "frame " << frame;
+  }
+  EXPECT_GT(grown.tree_nodes, first.tree_nodes);
+  // It leaves: the emptied leaves (<= 5 objects, not shown) merge.
+  RefineStats shrunk;
+  for (int frame = 0; frame < 3; ++frame)
+    ASSERT_TRUE(r->refine(level("ternary"), s.objects, s.cam, 64, 64, s.crowd, &out, &shrunk, &error)) << error;
+  EXPECT_LT(shrunk.tree_nodes, grown.tree_nodes);
+  // The wall drawn first hides the crowd's boxes: the crowd goes with few
+  // queries.
+  for (int frame = 0; frame < 2; ++frame) {
+    ASSERT_TRUE(r->refine(level("ternary"), s.objects, s.cam, 64, 64, s.pvs, &out, &st, &error)) << error;
+    EXPECT_EQ(out, std::vector<ObjectId>{1});
+    EXPECT_LT(st.queries, 40u) << "frame " << frame;
+  }
+}
+
+TEST(Refine, NearOptimalQueriesWhereTheModelSaysItPays) {
+  std::string error;
+  auto r = Renderer::create(render::ContextOptions{}, &error);
+  ASSERT_TRUE(r) << error;
+  const WallAndCrowd s;
+  std::vector<ObjectId> out;
+  RefineStats st;
+  // Queries dear, drawing cheap: nothing is worth a query, everything kept.
+  render::CostModel dear;
+  dear.query_setup_us = 1e6;
+  dear.render_setup_us = 1.0;
+  r->set_cost_model(dear);
+  ASSERT_TRUE(r->refine(level("near-optimal"), s.objects, s.cam, 64, 64, s.pvs, &out, &st, &error)) << error;
+  EXPECT_EQ(out, s.pvs);
+  EXPECT_EQ(st.queries, 0u);
+  EXPECT_EQ(st.kept_unqueried, 201u);
+
+  // Queries cheap, drawing dear: what lies behind the wall is queried (as
+  // boxes of the hierarchy, not ball by ball) and dropped; the wall, with
+  // nothing in front of it, is kept without a query.
+  render::CostModel cheap;
+  cheap.query_setup_us = 0.01;
+  cheap.render_setup_us = 100.0;
+  r->set_cost_model(cheap);
+  r->reset_refinement();
+  for (int frame = 0; frame < 3; ++frame) {
+    ASSERT_TRUE(r->refine(level("near-optimal"), s.objects, s.cam, 64, 64, s.pvs, &out, &st, &error)) << error;
+    EXPECT_EQ(out, std::vector<ObjectId>{1}) << "frame " << frame;
+    EXPECT_GT(st.queries, 0u);
+    EXPECT_EQ(st.kept_unqueried, 1u);
+    // Nothing known of the first frame: every box the crowd's is walked at
+    // once. Hidden since, a box's children wait for its answer.
+    if (frame > 0) EXPECT_LT(st.queries, 40u) << "frame " << frame;
+  }
+  // The triangle count prices drawing: at 1 triangle an object only boxes
+  // of many objects are worth a query; at 100,000 every ball is too.
+  render::CostModel even;
+  even.query_setup_us = 10.0;
+  even.render_setup_us = 1.0;
+  even.render_triangle_ns = 1000.0;  // 1 us a triangle.
+  r->set_cost_model(even);
+  RefineStats few, many;
+  r->reset_refinement();
+  ASSERT_TRUE(r->refine(level("near-optimal:1"), s.objects, s.cam, 64, 64, s.pvs, &out, &few, &error)) << error;
+  r->reset_refinement();
+  ASSERT_TRUE(r->refine(level("near-optimal:100000"), s.objects, s.cam, 64, 64, s.pvs, &out, &many, &error)) << error;
+  EXPECT_LT(few.queries, many.queries);
+  EXPECT_GT(few.kept_unqueried, many.kept_unqueried);
+  EXPECT_EQ(out, std::vector<ObjectId>{1});
+}
+
+TEST(Refine, TheCostModelIsMeasuredOnceAndKeptPerDevice) {
+  const std::string path = ::testing::TempDir() + "voxvis-cost-model-test/model.json";
+  std::remove(path.c_str());
+  std::string error, note;
+  render::CostModel a, b;
+  {
+    auto r = Renderer::create(render::ContextOptions{}, &error);
+    ASSERT_TRUE(r) << error;
+    ASSERT_TRUE(r->cost_model(path, &a, &note, &error)) << error;
+    EXPECT_NE(note.find("measured in"), std::string::npos) << note;
+    EXPECT_NE(note.find("saved to " + path), std::string::npos) << note;
+    EXPECT_EQ(a.device, r->info().gl_renderer + " | " + r->info().gl_version);
+    for (double v : {a.render_setup_us, a.query_setup_us, a.query_latency_us, a.calibration_ms}) {
+      EXPECT_TRUE(std::isfinite(v));
+      EXPECT_GT(v, 0.0);
+    }
+    for (double v : {a.render_triangle_ns, a.render_fragment_ns, a.query_fragment_ns, a.query_overhead_us}) {
+      EXPECT_TRUE(std::isfinite(v));
+      EXPECT_GE(v, 0.0);
+    }
+  }
+  {
+    // Another process (here: renderer) on the same device loads it.
+    auto r = Renderer::create(render::ContextOptions{}, &error);
+    ASSERT_TRUE(r) << error;
+    ASSERT_TRUE(r->cost_model(path, &b, &note, &error)) << error;
+    EXPECT_EQ(note, "cost model loaded from " + path);
+    EXPECT_EQ(b.query_setup_us, a.query_setup_us);
+    EXPECT_EQ(b.render_fragment_ns, a.render_fragment_ns);
+  }
+  // Another device's model in the file is kept when this one's is measured
+  // anew; a broken file is measured over, and said so.
+  {
+    std::ofstream f(path, std::ios::trunc);
+    f << R"({"format": "voxvis-cost-model", "version": 1, "models": [{"device": "elsewhere", "render_setup_us": 1,
+      "render_triangle_ns": 1, "render_fragment_ns": 1, "query_setup_us": 1, "query_fragment_ns": 1,
+      "query_latency_us": 1, "query_overhead_us": 1, "calibration_ms": 1}]})";
+  }
+  {
+    auto r = Renderer::create(render::ContextOptions{}, &error);
+    ASSERT_TRUE(r) << error;
+    ASSERT_TRUE(r->cost_model(path, &b, &note, &error)) << error;
+    EXPECT_NE(note.find("measured in"), std::string::npos) << note;
+    std::ifstream f(path);
+    const std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+    EXPECT_NE(text.find("\"elsewhere\""), std::string::npos) << text;
+    EXPECT_NE(text.find(r->info().gl_renderer), std::string::npos) << text;
+  }
+  {
+    std::ofstream f(path, std::ios::trunc);
+    f << "{ not json";
+  }
+  {
+    auto r = Renderer::create(render::ContextOptions{}, &error);
+    ASSERT_TRUE(r) << error;
+    ASSERT_TRUE(r->cost_model(path, &b, &note, &error)) << error;
+    EXPECT_NE(note.find("is not valid JSON"), std::string::npos) << note;
+    EXPECT_NE(note.find("saved to"), std::string::npos) << note;
+  }
+  // No place to keep it: measured, and said so.
+  {
+    auto r = Renderer::create(render::ContextOptions{}, &error);
+    ASSERT_TRUE(r) << error;
+    ASSERT_TRUE(r->cost_model("/proc/voxvis-no/model.json", &b, &note, &error)) << error;
+    EXPECT_NE(note.find("not saved"), std::string::npos) << note;
+  }
 }
 
 TEST(Refine, TheHierarchySkipsTheObjectsOfHiddenBoxes) {
@@ -135,7 +328,8 @@ TEST(Refine, BadLevelsAndIdsAreErrors) {
   Level l;
   std::string message;
   for (const char* bad : {"", "query", "adaptive", "adaptive:", "adaptive:0", "adaptive:-3", "adaptive:x",
-                          "adaptive:99999999"}) {
+                          "adaptive:99999999", "near-optimal:", "near-optimal:0", "near-optimal:1e3",
+                          "near-optimal:99999999", "ternary:2"}) {
     EXPECT_FALSE(render::parse_level(bad, &l, &message)) << bad;
     EXPECT_NE(message.find(bad), std::string::npos) << message;
   }
@@ -144,6 +338,12 @@ TEST(Refine, BadLevelsAndIdsAreErrors) {
   EXPECT_EQ(render::level_name(l), "adaptive:25");
   EXPECT_TRUE(render::level_may_miss(l));
   EXPECT_FALSE(render::level_may_miss(level("hierarchical")));
+  EXPECT_EQ(level("near-optimal").triangles, 1000u);
+  EXPECT_EQ(level("near-optimal:250").triangles, 250u);
+  EXPECT_EQ(render::level_name(level("near-optimal:250")), "near-optimal:250");
+  EXPECT_EQ(render::level_name(level("near-optimal")), "near-optimal");
+  EXPECT_FALSE(render::level_may_miss(level("near-optimal")));
+  EXPECT_FALSE(render::level_may_miss(level("ternary")));
 
   std::string error;
   auto r = Renderer::create(render::ContextOptions{}, &error);

@@ -98,6 +98,7 @@ struct VisibleStats {
 
 struct Level;        // voxvis/refine.h
 struct RefineStats;  // voxvis/refine.h
+struct CostModel;    // voxvis/refine.h
 
 class Renderer {
  public:
@@ -126,6 +127,20 @@ class Renderer {
   bool refine(const Level& level, const std::vector<ObjectDesc>& objects, const Camera& cam, int width,
               int height, const std::vector<ObjectId>& pvs, std::vector<ObjectId>* out, RefineStats* stats,
               std::string* error);
+
+  /// Forgets what the refinement levels keep between frames (ternary's tree,
+  /// near-optimal's last states): the next frame starts afresh.
+  void reset_refinement();
+
+  /// Near-optimal's cost model of this context's GPU: loaded from
+  /// `path` when it holds one for this device (GL_RENDERER and GL_VERSION),
+  /// else measured (a fraction of a second) and saved there (path empty:
+  /// not kept). Measured once per Renderer; later calls return it. `note`
+  /// says where it came from ("loaded from ...", "calibrated in ... ms,
+  /// saved to ..." or why it could not be saved); false only on a GL error.
+  bool cost_model(const std::string& path, CostModel* out, std::string* note, std::string* error);
+  /// Uses `model` from now on instead (neither measured nor saved).
+  void set_cost_model(const CostModel& model);
 
   /// The id at every pixel of the last Method::Ids call (row 0 at the bottom,
   /// 0 where no object is hit), width * height values.
