@@ -86,13 +86,14 @@ inline constexpr int kExitMissed = 3;
 int run_verify(const VerifyArgs& args);
 
 struct GenerateArgs {
-  std::string preset = "paper";
+  std::string preset = "paper";  ///< paper | indoor | voxel-world | voxel-cave | city.
   std::string scene_out;
   std::string frames_out;
-  int objects = 5000;
-  int dynamic = 200;
+  std::optional<int> objects;  ///< paper only; empty: 5000.
+  std::optional<int> dynamic;  ///< paper only; empty: 200.
+  std::optional<std::string> size;  ///< Not paper: "N", or "XxZ" for indoor; empty: the preset's default.
   int frames = 300;
-  std::uint64_t seed = 1;
+  std::optional<std::string> seed;  ///< Decimal, as given; empty: the preset's default (1 for paper).
 };
 
 int run_generate(const GenerateArgs& args);

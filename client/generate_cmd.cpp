@@ -1,6 +1,12 @@
 // generate_cmd.cpp — `voxvis generate`: writes a scene file and a frames file
 // from a preset (generate.h).
+#include <charconv>
+#include <cstdint>
+#include <limits>
 #include <string>
+#include <string_view>
+#include <system_error>
+#include <vector>
 
 #include "cli.h"
 #include "output_file.h"
@@ -8,35 +14,132 @@
 #include "voxvis/generate.h"
 
 namespace voxvis::cli {
+namespace {
 
-int run_generate(const GenerateArgs& args) {
-  if (args.preset != "paper") {
-    return report(FormatError{"", 0, "--preset", "unknown preset '" + args.preset + "' (known: paper)"});
-  }
-  if (args.objects < 0) {
-    return report(FormatError{"", 0, "--objects", "must be >= 0, got " + std::to_string(args.objects)});
-  }
-  if (args.dynamic < 0 || args.dynamic > args.objects) {
-    return report(FormatError{"", 0, "--dynamic",
-                              "must be in [0, --objects = " + std::to_string(args.objects) +
-                                  "], got " + std::to_string(args.dynamic)});
-  }
-  if (args.frames < 0) {
-    return report(FormatError{"", 0, "--frames", "must be >= 0, got " + std::to_string(args.frames)});
-  }
+enum class Kind { Paper, Indoor, VoxelWorld, VoxelCave, City };
 
-  PaperSceneParams scene_params;
-  scene_params.objects = args.objects;
-  scene_params.dynamic = args.dynamic;
-  scene_params.seed = args.seed;
-  const SceneDesc scene = make_paper_scene(scene_params);
+/// A preset and the meaning, default and range of its --size.
+struct Preset {
+  const char* name;
+  Kind kind;
+  std::uint64_t default_seed;  ///< The benchmark's seed (tests/bench/bench_frame.cpp); 1 for paper.
+  int default_x, default_z;    ///< --size default (z only for indoor).
+  int min_size, max_size;      ///< Per axis.
+  const char* size_unit;       ///< What --size counts.
+  const char* cap_reason;      ///< Why max_size.
+};
 
-  WalkthroughParams walk_params;
-  walk_params.frames = args.frames;
-  walk_params.seed = args.seed + 1;  // Defaults: scene seed 1, walkthrough seed 2.
-  const std::vector<FrameInput> frames = make_walkthrough(scene, walk_params);
+// The caps keep scenes to at most about half a million objects (scene files
+// below 40 MB) and grids of at most 34 million voxels (the engine accepts
+// 2^27), which `voxvis replay` runs in well under a gigabyte.
+constexpr Preset kPresets[] = {
+    {"paper", Kind::Paper, 1, 0, 0, 0, 0, "", ""},
+    {"indoor", Kind::Indoor, 7, 6, 3, 1, 100, "rooms per side",
+     "100 x 100 rooms are about 100,000 objects"},
+    {"voxel-world", Kind::VoxelWorld, 11, 64, 0, 16, 256, "columns per side",
+     "256 x 256 columns are about 500,000 blocks"},
+    {"voxel-cave", Kind::VoxelCave, 11, 64, 0, 16, 256, "columns per side",
+     "256 x 256 columns are about 500,000 blocks"},
+    {"city", Kind::City, 5, 8, 0, 1, 64, "blocks per side",
+     "64 x 64 blocks are a grid of 1028 x 32 x 1028, 34 million voxels"},
+};
 
-  // Each file is written whole or not at all (temporary file, then rename).
+/// Frames: 100,000 at 60 per second is almost half an hour.
+constexpr int kMaxFrames = 100000;
+
+const Preset* find_preset(const std::string& name) {
+  for (const Preset& p : kPresets) {
+    if (name == p.name) return &p;
+  }
+  return nullptr;
+}
+
+std::string known_presets() {
+  std::string out;
+  for (const Preset& p : kPresets) {
+    if (!out.empty()) out += ", ";
+    out += p.name;
+  }
+  return out;
+}
+
+/// A decimal integer with an optional sign; values beyond int64 saturate (so
+/// that they fail the range check with the text quoted). False when `text`
+/// is not a number.
+bool parse_integer(std::string_view text, std::int64_t* out) {
+  bool negative = false;
+  if (!text.empty() && (text.front() == '+' || text.front() == '-')) {
+    negative = text.front() == '-';
+    text.remove_prefix(1);
+  }
+  if (text.empty()) return false;
+  for (const char c : text) {
+    if (c < '0' || c > '9') return false;
+  }
+  std::uint64_t v = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+  if (end != text.data() + text.size()) return false;
+  constexpr std::uint64_t kMax = static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max());
+  if (ec == std::errc::result_out_of_range || v > kMax) v = kMax;
+  *out = negative ? -static_cast<std::int64_t>(v) : static_cast<std::int64_t>(v);
+  return true;
+}
+
+/// A seed: decimal digits only (no sign, no base prefix), at most 2^64 - 1.
+bool parse_seed(std::string_view text, std::uint64_t* out) {
+  if (text.empty()) return false;
+  for (const char c : text) {
+    if (c < '0' || c > '9') return false;
+  }
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), *out);
+  return ec == std::errc() && end == text.data() + text.size();
+}
+
+/// Parses --size for a non-paper preset: "N", or for indoor also "XxZ" (N
+/// alone: N x N rooms). On error sets `message`.
+bool parse_size(const std::string& text, const Preset& preset, int* x, int* z, std::string* message) {
+  const bool two = preset.kind == Kind::Indoor;
+  std::string expect = preset.size_unit;
+  expect += " of preset '";
+  expect += preset.name;
+  expect += two ? "' must be N or XxZ (e.g. 6x3) with integers in [" : "' must be an integer in [";
+  expect += std::to_string(preset.min_size) + ", " + std::to_string(preset.max_size) + "]";
+  const std::string got = ", got '" + text + "'";
+
+  std::string_view first = text, second;
+  if (const std::size_t sep = text.find_first_of("xX"); sep != std::string::npos) {
+    if (!two) {
+      *message = expect + " (one number: the scene is square)" + got;
+      return false;
+    }
+    first = std::string_view(text).substr(0, sep);
+    second = std::string_view(text).substr(sep + 1);
+  }
+  std::int64_t a = 0, b = 0;
+  if (!parse_integer(first, &a) || (!second.empty() && !parse_integer(second, &b)) ||
+      (second.empty() && first.size() != text.size())) {
+    *message = expect + got;
+    return false;
+  }
+  if (second.empty()) b = a;
+  for (const std::int64_t v : {a, b}) {
+    if (v < preset.min_size || v > preset.max_size) {
+      *message = expect + got;
+      if (v > preset.max_size) {
+        *message += " (";
+        *message += preset.cap_reason;
+        *message += ")";
+      }
+      return false;
+    }
+  }
+  *x = static_cast<int>(a);
+  *z = static_cast<int>(b);
+  return true;
+}
+
+/// Writes both files, each whole or not at all (temporary file, then rename).
+int write_files(const GenerateArgs& args, const SceneDesc& scene, const std::vector<FrameInput>& frames) {
   OutputFile scene_out;
   OutputFile frames_out;
   std::string message;
@@ -55,6 +158,77 @@ int run_generate(const GenerateArgs& args) {
   if (!scene_out.commit(&message)) return report(FormatError{args.scene_out, 0, "", message});
   if (!frames_out.commit(&message)) return report(FormatError{args.frames_out, 0, "", message});
   return kExitOk;
+}
+
+}  // namespace
+
+int run_generate(const GenerateArgs& args) {
+  const Preset* preset = find_preset(args.preset);
+  if (preset == nullptr) {
+    return report(FormatError{"", 0, "--preset",
+                              "unknown preset '" + args.preset + "' (known: " + known_presets() + ")"});
+  }
+  if (args.frames < 0 || args.frames > kMaxFrames) {
+    return report(FormatError{"", 0, "--frames",
+                              "must be in [0, " + std::to_string(kMaxFrames) +
+                                  "] (28 minutes at 60 per second), got " + std::to_string(args.frames)});
+  }
+  std::uint64_t seed = preset->default_seed;
+  if (args.seed && !parse_seed(*args.seed, &seed)) {
+    return report(FormatError{"", 0, "--seed",
+                              "must be an integer in [0, 18446744073709551615], got '" + *args.seed + "'"});
+  }
+
+  if (preset->kind == Kind::Paper) {
+    if (args.size) {
+      return report(FormatError{"", 0, "--size",
+                                "does not apply to preset 'paper' (its scene is sized by --objects)"});
+    }
+    const int objects = args.objects.value_or(PaperSceneParams{}.objects);
+    const int dynamic = args.dynamic.value_or(PaperSceneParams{}.dynamic);
+    if (objects < 0) {
+      return report(FormatError{"", 0, "--objects", "must be >= 0, got " + std::to_string(objects)});
+    }
+    if (dynamic < 0 || dynamic > objects) {
+      return report(FormatError{"", 0, "--dynamic",
+                                "must be in [0, --objects = " + std::to_string(objects) + "], got " +
+                                    std::to_string(dynamic)});
+    }
+    PaperSceneParams scene_params;
+    scene_params.objects = objects;
+    scene_params.dynamic = dynamic;
+    scene_params.seed = seed;
+    const SceneDesc scene = make_paper_scene(scene_params);
+
+    WalkthroughParams walk_params;
+    walk_params.frames = args.frames;
+    walk_params.seed = seed + 1;  // Defaults: scene seed 1, walkthrough seed 2.
+    return write_files(args, scene, make_walkthrough(scene, walk_params));
+  }
+
+  // The static scenes have no moving objects; --size sizes them.
+  const auto not_paper = [&](const char* flag) {
+    std::string message = "applies to preset 'paper' only, not to '";
+    message += preset->name;
+    message += "' (a static scene, sized by --size)";
+    return report(FormatError{"", 0, flag, message});
+  };
+  if (args.objects) return not_paper("--objects");
+  if (args.dynamic) return not_paper("--dynamic");
+  int x = preset->default_x, z = preset->default_z;
+  if (args.size) {
+    std::string message;
+    if (!parse_size(*args.size, *preset, &x, &z, &message)) return report(FormatError{"", 0, "--size", message});
+  }
+  ScenePath path;
+  switch (preset->kind) {
+    case Kind::Indoor: path = make_indoor_level(x, z, args.frames, seed); break;
+    case Kind::VoxelWorld: path = make_voxel_world(x, args.frames, false, seed); break;
+    case Kind::VoxelCave: path = make_voxel_world(x, args.frames, true, seed); break;
+    case Kind::City: path = make_city(x, args.frames, seed); break;
+    case Kind::Paper: break;  // Handled above.
+  }
+  return write_files(args, path.scene, camera_frames(path.cameras));
 }
 
 }  // namespace voxvis::cli

@@ -143,10 +143,10 @@ void compact(TernaryTree& t) {
   kept.push_back(t.nodes[0]);
   for (std::size_t i = 0; i < kept.size(); ++i) {
     if (kept[i].axis < 0) continue;
-    for (std::int32_t& c : kept[i].child) {
-      const TernaryNode child = t.nodes[static_cast<std::size_t>(c)];
-      c = static_cast<std::int32_t>(kept.size());
-      kept.push_back(child);
+    for (int c = 0; c < 3; ++c) {
+      const TernaryNode child = t.nodes[static_cast<std::size_t>(kept[i].child[c])];
+      kept[i].child[c] = static_cast<std::int32_t>(kept.size());
+      kept.push_back(child);  // May move kept: no reference into it is held.
     }
   }
   t.nodes.swap(kept);
@@ -201,8 +201,9 @@ bool refine_ternary(Renderer::Impl& m, const Basis& b, int width, int height, co
   m.begin_probes(0);
   stats->draw_ms += ms_since(t0);
 
-  // Query objects from the renderer's pool.
-  std::vector<std::size_t> free_queries;
+  // Query objects from the renderer's pool, all free between frames.
+  std::vector<std::size_t> free_queries(m.queries.size());
+  for (std::size_t q = 0; q < free_queries.size(); ++q) free_queries[q] = free_queries.size() - 1 - q;
   auto acquire = [&]() {
     if (free_queries.empty()) {
       const std::size_t old = m.queries.size(), grown = std::max<std::size_t>(64, 2 * old);

@@ -6,38 +6,21 @@
 #pragma once
 
 #include <cstdint>
-#include <random>
 #include <string>
 #include <vector>
 
 #include <glm/vec3.hpp>
 
+#include "voxvis/generate.h"
+#include "voxvis/rng.h"
 #include "voxvis/scene.h"
 #include "voxvis/types.h"
 
 namespace voxvis::test {
 
-/// Seeded random numbers with portable mappings.
-class Rng {
- public:
-  explicit Rng(std::uint64_t seed) : gen_(seed) {}
-  std::uint64_t bits() { return gen_(); }
-  /// Uniform in [0, 1), 53 random bits.
-  double uniform();
-  /// Uniform in [a, b).
-  double uniform(double a, double b) { return a + (b - a) * uniform(); }
-  /// exp(uniform(log a, log b)); a, b > 0.
-  double log_uniform(double a, double b);
-  /// Uniform integer in [lo, hi] (lo <= hi), unbiased.
-  int uniform_int(int lo, int hi);
-  bool chance(double p) { return uniform() < p; }
-  Vec3 in_box(const Vec3& lo, const Vec3& hi);
-  /// Uniform on the unit sphere.
-  Vec3 unit_vector();
-
- private:
-  std::mt19937_64 gen_;
-};
+/// Seeded random numbers with portable mappings (shared with the engine's
+/// scene generators).
+using voxvis::Rng;
 
 /// Derives an independent sub-seed (splitmix64 of the pair).
 std::uint64_t mix_seed(std::uint64_t a, std::uint64_t b);
@@ -139,39 +122,18 @@ std::vector<Move> transform_moves(const std::vector<Move>& moves, double scale, 
 /// "seed=..., grid=..., bounds=..." for failure messages.
 std::string describe_scene(const SceneDesc& scene, std::uint64_t seed);
 
-/// Object builders for hand-written test scenes.
-ObjectDesc sphere(ObjectId id, Vec3 center, double radius);
-/// A box from its corners.
-ObjectDesc box_between(ObjectId id, Vec3 lo, Vec3 hi);
-/// A box from its centre and half extents.
-ObjectDesc box_around(ObjectId id, Vec3 center, Vec3 half_extent);
+/// Object builders for hand-written test scenes (sphere, box_between and
+/// box_around are the generators', voxvis/generate.h).
+using voxvis::box_around;
+using voxvis::box_between;
+using voxvis::sphere;
 ObjectDesc dynamic(ObjectDesc o, double max_speed);
 
-/// A static scene and a camera path through it.
-struct ScenePath {
-  SceneDesc scene;
-  std::vector<Camera> cameras;
-};
-
-/// An indoor level on unit voxels: a rows x cols array of 12 x 12 rooms with
-/// 4 units of height, walls 1 voxel thick built from abutting boxes (one per
-/// wall segment between doorways 2 voxels wide), floor and ceiling slabs, a
-/// few boxes and spheres in each room; every wall face lies on a voxel plane.
-/// The path walks along the middle row of rooms at eye height, looking ahead
-/// and turning.
-ScenePath make_indoor_level(int rooms_x, int rooms_z, int frames, std::uint64_t seed);
-
-/// A voxel world of unit blocks, one object per voxel: terrain of height
-/// 4..12 over size x size columns, with caves carved out below the surface
-/// (one of them open to the sky). cave_path chooses a path through a cave
-/// (else over the surface at 2 voxels above the ground).
-ScenePath make_voxel_world(int size, int frames, bool cave_path, std::uint64_t seed);
-
-/// A city at street level: blocks x blocks city blocks of 4 box buildings
-/// each (footprints and heights varied, not voxel-aligned), streets 8 units
-/// wide between them with parked cars (small boxes) along both sides, and a
-/// ground slab; grid of 2-unit voxels. The path drives along one street at
-/// eye height 1.7, looking ahead and glancing into the cross streets.
-ScenePath make_city(int blocks, int frames, std::uint64_t seed);
+/// The static scenes with a camera path: indoor level, voxel world, city
+/// (voxvis/generate.h, where `voxvis generate` finds them too).
+using voxvis::make_city;
+using voxvis::make_indoor_level;
+using voxvis::make_voxel_world;
+using voxvis::ScenePath;
 
 }  // namespace voxvis::test

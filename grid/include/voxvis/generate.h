@@ -1,7 +1,10 @@
 // voxvis/generate.h — deterministic scenes and camera paths for examples,
-// benchmarks and tests. The "paper" preset follows the evaluation scene of
-// Batagelo & Wu (section 6): clusters of spheres of varied size, some of them
-// moving, in bounds 100 x 60 x 100, seen by a walkthrough camera.
+// benchmarks and tests (`voxvis generate` writes them as files). The "paper"
+// preset follows the evaluation scene of Batagelo & Wu (section 6): clusters
+// of spheres of varied size, some of them moving, in bounds 100 x 60 x 100,
+// seen by a walkthrough camera. The static scenes (indoor level, voxel world,
+// city) come with a camera path of their own. Every result is a pure
+// function of the arguments, the same on every platform (voxvis/rng.h).
 #pragma once
 
 #include <cstdint>
@@ -40,5 +43,47 @@ struct WalkthroughParams {
 /// ahead, with the dynamic objects wandering at up to max_speed (bouncing off
 /// the bounds). Deterministic for a given seed.
 std::vector<FrameInput> make_walkthrough(const SceneDesc& scene, const WalkthroughParams& params);
+
+/// Object builders (for generators and hand-written scenes).
+ObjectDesc sphere(ObjectId id, Vec3 center, double radius);
+/// A box from its corners.
+ObjectDesc box_between(ObjectId id, Vec3 lo, Vec3 hi);
+/// A box from its centre and half extents.
+ObjectDesc box_around(ObjectId id, Vec3 center, Vec3 half_extent);
+
+/// A static scene and a camera path through it. The cameras have up +y,
+/// a 16:9 aspect, near 0.05 and far 500.
+struct ScenePath {
+  SceneDesc scene;
+  std::vector<Camera> cameras;
+};
+
+/// An indoor level on unit voxels: a rooms_x x rooms_z array of 12 x 12
+/// rooms with 4 units of height, walls 1 voxel thick built from abutting
+/// boxes (one per wall segment between doorways 2 voxels wide), floor and
+/// ceiling slabs, a few boxes and spheres in each room; every wall face lies
+/// on a voxel plane. The path walks along the middle row of rooms at eye
+/// height, looking ahead and turning. rooms_x, rooms_z >= 1; frames >= 0.
+ScenePath make_indoor_level(int rooms_x, int rooms_z, int frames, std::uint64_t seed);
+
+/// A voxel world of unit blocks, one object per voxel: terrain of height
+/// 4..12 over size x size columns, with caves carved out below the surface
+/// (one of them open to the sky). cave_path chooses a path through a cave
+/// (else over the surface at 2 voxels above the ground); the scene does not
+/// depend on it. size >= 1, frames >= 0; the cave path stays inside its
+/// tunnel from size 8 (`voxvis generate` asks for 16 to 256).
+ScenePath make_voxel_world(int size, int frames, bool cave_path, std::uint64_t seed);
+
+/// A city at street level: blocks x blocks city blocks of 4 box buildings
+/// each (footprints and heights varied, not voxel-aligned), streets 8 units
+/// wide between them with parked cars (small boxes) along both sides, and a
+/// ground slab; grid of 2-unit voxels. The path drives along one street at
+/// eye height 1.7, looking ahead and glancing into the cross streets.
+/// blocks >= 1; frames >= 0.
+ScenePath make_city(int blocks, int frames, std::uint64_t seed);
+
+/// The frames of a camera path: line i (1-based) is camera i - 1 at time
+/// (i - 1) / fps, without moves (as make_walkthrough numbers and times them).
+std::vector<FrameInput> camera_frames(const std::vector<Camera>& cameras, double fps = 60.0);
 
 }  // namespace voxvis
