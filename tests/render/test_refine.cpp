@@ -165,6 +165,15 @@ TEST(Refine, TheTernaryTreeDrawsWhatShowsAndAdaptsToWhatIsHidden) {
   for (int frame = 0; frame < 3; ++frame)
     ASSERT_TRUE(r->refine(level("ternary"), s.objects, s.cam, 64, 64, s.crowd, &out, &shrunk, &error)) << error;
   EXPECT_LT(shrunk.tree_nodes, grown.tree_nodes);
+  // Frame after frame the same view gives the same answer, and what the
+  // level keeps between frames does not grow.
+  RefineStats steady;
+  for (int frame = 0; frame < 40; ++frame) {
+    ASSERT_TRUE(r->refine(level("ternary"), s.objects, s.cam, 64, 64, s.crowd, &out, &steady, &error)) << error;
+    ASSERT_TRUE(r->refine(level("queries"), s.objects, s.cam, 64, 64, s.crowd, &flat, &st, &error)) << error;
+    EXPECT_TRUE(std::includes(out.begin(), out.end(), flat.begin(), flat.end())) << "frame " << frame;
+  }
+  EXPECT_EQ(steady.tree_nodes, shrunk.tree_nodes);
   // The wall drawn first hides the crowd's boxes: the crowd goes with few
   // queries.
   for (int frame = 0; frame < 2; ++frame) {
