@@ -31,7 +31,7 @@
 //                          the ray caster counts as visible but its sampled
 //                          rays never find (edge_only_blocks)
 //       voxels_sub_mean, in_view_mean (indoor, voxel world, city) voxels
-//                          visited and voxels in view (test::voxels_in_view,
+//                          visited and voxels in view (raycast::voxels_in_view,
 //                          256x144 rays) on the sampled frames
 //       vfc_mean           objects passing view-frustum culling alone (AABB)
 //       ob_voxels_mean, ob_objects_mean (with /ob:W) voxels and objects or
@@ -74,15 +74,15 @@
 
 #include <glm/common.hpp>
 
-#include "raycast.h"
 #include "scenes.h"
 #include "voxvis/generate.h"
+#include "voxvis/raycast.h"
 #include "voxvis/scene.h"
 
 namespace voxvis::bench {
 namespace {
 
-using test::RaySampling;
+using raycast::RaySampling;
 
 /// A recorded camera path (with moves, for the walkthrough) and its ground
 /// truth on every 20th frame, computed once.
@@ -93,7 +93,7 @@ struct Recording {
   std::vector<int> sampled;  ///< Frame indices.
   double exact_mean = 0.0;
   double vfc_mean = 0.0;
-  /// Voxels in view on the sampled frames (test::voxels_in_view at
+  /// Voxels in view on the sampled frames (raycast::voxels_in_view at
   /// kInViewCols x kInViewRows rays), on the scene's own grid; 0 when the
   /// scene names none.
   std::vector<double> in_view;
@@ -137,13 +137,13 @@ Recording record(Path which) {
     s.cols = kExactCols;
     s.rows = kExactRows;
     s.seed = k;
-    exact += static_cast<double>(test::visible_objects(objects, out.frames[k].camera, s).size());
-    vfc += static_cast<double>(test::frustum_objects(objects, out.frames[k].camera).size());
+    exact += static_cast<double>(raycast::visible_objects(objects, out.frames[k].camera, s).size());
+    vfc += static_cast<double>(raycast::frustum_objects(objects, out.frames[k].camera).size());
     RaySampling centres;
     centres.cols = kInViewCols;
     centres.rows = kInViewRows;
     centres.jitter = false;
-    out.in_view.push_back(grid ? static_cast<double>(test::voxels_in_view(objects, out.frames[k].camera,
+    out.in_view.push_back(grid ? static_cast<double>(raycast::voxels_in_view(objects, out.frames[k].camera,
                                                                           out.scene.bounds_min, out.scene.bounds_max,
                                                                           *out.scene.grid, centres))
                                : 0.0);
@@ -166,7 +166,7 @@ const Recording& recording(Path which) {
 /// towards the eye lies against another block, so that the eye can see them
 /// only along an edge or at a corner, where a ray meets them and their
 /// neighbours at the same depth. The ray caster counts such a tie as
-/// visible (raycast.h), so the engine must keep them; the caster's sampled
+/// visible (voxvis/raycast.h), so the engine must keep them; the caster's sampled
 /// rays never land exactly on an edge, so it never finds them. The count
 /// shows how much of the gap to exact_mean is that.
 int edge_only_blocks(const SceneDesc& scene, const Camera& cam, const std::vector<ObjectId>& pvs) {
@@ -280,7 +280,7 @@ void BM_Path(benchmark::State& state, Path which, glm::ivec3 grid, int ob) {
     }
     benchmark::DoNotOptimize(result.pvs.data());
     const auto v0 = std::chrono::steady_clock::now();
-    const std::vector<ObjectId> in_frustum = test::frustum_objects(objects, rec.frames[k].camera);
+    const std::vector<ObjectId> in_frustum = raycast::frustum_objects(objects, rec.frames[k].camera);
     benchmark::DoNotOptimize(in_frustum.data());
     vfc_times.push_back(std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - v0).count());
   }

@@ -1,121 +1,26 @@
-// raycast.h — ground truth for the visibility tests: a double-precision CPU
-// ray caster written independently of the engine. It uses only the public
-// value types (ObjectDesc, Camera) and none of the engine's code.
-//
-// Definition of "visible" used here:
-//   An object is visible when some ray from the eye, inside the frustum,
-//   reaches a point of the object between the near and far planes before it
-//   reaches any other object.
-//
-// Objects are solids: a sphere is the closed ball centre ± radius; a box is
-// the closed axis-aligned box centre ± half_extent (it may be flat when a
-// half extent is 0).
-//
-// Rays: r(t) = eye + t*d with d = f + x*tanx*right + y*tany*up', where
-// f = normalize(dir), right = normalize(cross(f, up)), up' = cross(right, f),
-// tany = tan(fov_y/2), tanx = aspect*tany and x, y in [-1, 1]. Since d·f = 1,
-// the parameter t of a point is its depth along the view direction, so the
-// frustum is exactly t in [near, far] over x, y in [-1, 1].
-//
-// Near-plane choice: each object's intersection interval with a ray is clipped
-// to [near, far]; the object with the smallest clipped entry is the one hit.
-// Objects (or the parts of objects) wholly before the near plane are clipped
-// away: they are not visible and they do NOT block what lies behind them. This
-// is the more conservative reading (it makes more objects visible), and it
-// matches rasterization with near-plane clipping. An object that contains the
-// eye is hit at depth `near` on every ray that leaves it beyond the near plane.
-// Ties (several objects entered at exactly the same depth) make all of them
-// visible, again the conservative reading.
-//
-// The caster samples the image: it proves visibility (every id it returns is
-// visible), never invisibility. Tests therefore assert PVS ⊇ visible_objects.
+// raycast.h — the tests' ground truth is the product's CPU ray caster
+// (raycast/include/voxvis/raycast.h, namespace voxvis::raycast, which says
+// what "visible" means); this header brings its names into voxvis::test,
+// next to the helpers of failure messages (describe.h). Nothing is defined
+// here: there is one ray caster.
 #pragma once
 
-#include <cstdint>
-#include <string>
-#include <vector>
-
-#include "voxvis/types.h"
+#include "describe.h"
+#include "voxvis/raycast.h"
 
 namespace voxvis::test {
 
-/// How the image is sampled: a cols x rows grid of cells over x, y in
-/// [-1, 1], one ray per cell at a jittered position drawn from `seed`
-/// (or at the cell centre when `jitter` is false), plus optionally one ray
-/// through every cell corner, which includes the exact frustum edges and
-/// corners (x, y = ±1).
-struct RaySampling {
-  int cols = 96;
-  int rows = 96;
-  bool jitter = true;
-  bool corners = false;
-  std::uint64_t seed = 0x5eed;
-};
-
-/// The per-camera frame of reference used by the caster (see the header
-/// comment for the definitions).
-struct ViewBasis {
-  Vec3 eye{0.0};
-  Vec3 f{0.0, 0.0, -1.0};      ///< Unit view direction.
-  Vec3 right{1.0, 0.0, 0.0};   ///< Unit.
-  Vec3 up{0.0, 1.0, 0.0};      ///< Unit, = cross(right, f).
-  double tanx = 1.0;
-  double tany = 1.0;
-  double near = 0.05;
-  double far = 1000.0;
-
-  /// The (unnormalized, d·f = 1) direction of the ray through image point (x, y).
-  Vec3 ray_dir(double x, double y) const { return f + (x * tanx) * right + (y * tany) * up; }
-};
-
-/// Builds the basis. Returns false (and leaves `out` alone) for a camera that
-/// does not define a frustum: non-finite values, zero dir, up parallel to dir,
-/// fov outside (0, 180), aspect <= 0, near <= 0 or far <= near.
-bool make_basis(const Camera& cam, ViewBasis* out);
-
-/// Intersection of the closed solid `obj` with the line eye + t*d: the
-/// interval [t0, t1] of t. Returns false when they do not meet. Unbounded
-/// intervals (d = 0 inside a slab) are reported as ±infinity.
-bool intersect(const ObjectDesc& obj, const Vec3& eye, const Vec3& d, double* t0, double* t1);
-
-/// The ids of the objects hit first by at least one sampled ray (see the
-/// header comment), ascending and unique. Empty for an invalid camera.
-std::vector<ObjectId> visible_objects(const std::vector<ObjectDesc>& objects, const Camera& cam,
-                                      const RaySampling& sampling = {});
-
-/// The ids of the objects hit first by the single ray through image point
-/// (x, y), x, y in [-1, 1] (several on a tie; empty when the ray hits nothing).
-std::vector<ObjectId> first_hit(const std::vector<ObjectDesc>& objects, const Camera& cam, double x,
-                                double y);
-
-/// Image coordinates (x, y) of point `p` (the ray through them passes
-/// through p); false when p is not in front of the eye or the camera is
-/// invalid. The point is in the image when |x|, |y| <= 1.
-bool project(const Camera& cam, const Vec3& p, double* x, double* y);
-
-/// The ids of the objects that may intersect the view frustum, ascending:
-/// the AABB test — an object is rejected only when its axis-aligned bounding
-/// box lies wholly outside one of the frustum's six planes (by more than a
-/// tiny relative tolerance). This is the view-frustum-culling-only set; it is
-/// exact for most objects and includes a few outside near the frustum's edges
-/// and corners, but never excludes an object that meets the frustum, so it is
-/// a superset of visible_objects.
-std::vector<ObjectId> frustum_objects(const std::vector<ObjectDesc>& objects, const Camera& cam);
-
-/// How many voxels of the grid over [bmin, bmax] with `res` voxels a side
-/// the rays through the cell centres of `sampling` pass through, from the near
-/// plane up to and including their first hit (or the far plane): a sampled
-/// lower bound of the voxels in view, which a traversal must visit at least.
-std::size_t voxels_in_view(const std::vector<ObjectDesc>& objects, const Camera& cam, const Vec3& bmin,
-                           const Vec3& bmax, const glm::ivec3& res, const RaySampling& sampling);
-
-/// Ids in `visible` missing from `pvs` (both ascending).
-std::vector<ObjectId> missing_ids(const std::vector<ObjectId>& pvs,
-                                  const std::vector<ObjectId>& visible);
-
-/// Human-readable, round-trippable (%.17g) descriptions for failure messages.
-std::string describe(const Camera& cam);
-std::string describe(const ObjectDesc& obj);
-std::string describe_ids(const std::vector<ObjectId>& ids, std::size_t max_count = 40);
+using raycast::CastOptions;
+using raycast::CastStats;
+using raycast::first_hit;
+using raycast::frustum_objects;
+using raycast::intersect;
+using raycast::make_basis;
+using raycast::pixel_centres;
+using raycast::project;
+using raycast::RaySampling;
+using raycast::ViewBasis;
+using raycast::visible_objects;
+using raycast::voxels_in_view;
 
 }  // namespace voxvis::test

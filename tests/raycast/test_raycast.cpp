@@ -1,18 +1,36 @@
-// Tests of the ground truth itself (tests/support/raycast.*, scenes.*), so
-// that the visibility property tests can trust it. None of these use the
-// engine.
+// Tests of the CPU ray caster (raycast/, voxvis::raycast): its definitions
+// on hand-made scenes, and the hierarchy's answers against brute force (every
+// object tested on every ray) on random scenes with their hard cases — eyes
+// on voxel corners, axis views, extreme lenses, huge and tiny coordinates,
+// objects outside the bounds, exact ties. None of these use the engine.
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <string>
+#include <vector>
 
 #include <glm/geometric.hpp>
 
-#include "raycast.h"
+#include "describe.h"
 #include "scenes.h"
+#include "voxvis/raycast.h"
 
 namespace voxvis::test {
 namespace {
+
+using raycast::CastOptions;
+using raycast::CastStats;
+using raycast::first_hit;
+using raycast::frustum_objects;
+using raycast::intersect;
+using raycast::make_basis;
+using raycast::pixel_centres;
+using raycast::RaySampling;
+using raycast::ViewBasis;
+using raycast::visible_objects;
+using raycast::voxels_in_view;
 
 Camera looking_down_minus_z() {
   return camera_along(Vec3(0.0), Vec3(0.0, 0.0, -1.0), 60.0, 1.0, 0.1, 100.0);
@@ -195,9 +213,9 @@ TEST(Raycast, FrustumObjectsIsTheAabbTest) {
   EXPECT_EQ(frustum_objects(objs, c), Ids{1});
 }
 
-TEST(Raycast, TiledCastingEqualsBruteForce) {
-  // The tiling/ordering accelerations must not change the answer: compare
-  // with first_hit over the same (unjittered) rays.
+TEST(Raycast, CellCentresAndCornersAreTheRaysOfFirstHit) {
+  // The sampling is what the header says: with no jitter, the union of
+  // first_hit (brute force) over the cell centres and corners.
   for (std::uint64_t seed = 1; seed <= 6; ++seed) {
     RandomSceneParams p = random_scene_params(seed);
     p.spheres = std::min(p.spheres, 40);
@@ -286,83 +304,157 @@ TEST(Raycast, TransformedSceneGivesTheSameAnswerOnSimpleScenes) {
   EXPECT_EQ(visible_objects(objs, cam), visible_objects(moved.objects, transform_camera(cam, 1e-3, offset)));
 }
 
-// --- the generators ---------------------------------------------------------
+// --- the hierarchy against brute force --------------------------------------
 
-TEST(Scenes, RngMappings) {
-  Rng rng(42);
-  for (int i = 0; i < 10000; ++i) {
-    const double u = rng.uniform();
-    ASSERT_GE(u, 0.0);
-    ASSERT_LT(u, 1.0);
-    const int k = rng.uniform_int(-3, 5);
-    ASSERT_GE(k, -3);
-    ASSERT_LE(k, 5);
-    ASSERT_NEAR(glm::length(rng.unit_vector()), 1.0, 1e-12);
-  }
-  Rng a(7);
-  Rng b(7);
-  for (int i = 0; i < 100; ++i) ASSERT_EQ(a.bits(), b.bits());
-  // mt19937_64's 10000th output is fixed by the standard.
-  std::mt19937_64 g;
-  g.discard(9999);
-  EXPECT_EQ(g(), 9981545732273789042ULL);
+/// Brute force, the definition: every object on every ray.
+Ids brute_force(const std::vector<ObjectDesc>& objects, const Camera& cam, const RaySampling& s) {
+  CastOptions o;
+  o.threads = 1;
+  o.brute_force = true;
+  return visible_objects(objects, cam, s, o);
 }
 
-TEST(Scenes, RandomScenesAreValid) {
-  for (std::uint64_t seed = 0; seed < 30; ++seed) {
-    const RandomSceneParams p = random_scene_params(seed);
-    const SceneDesc scene = random_scene(p, seed);
-    ASSERT_TRUE(scene.grid.has_value());
-    std::vector<ObjectId> ids;
-    for (const ObjectDesc& o : scene.objects) {
-      ids.push_back(o.id);
-      if (o.shape == Shape::Sphere) {
-        EXPECT_GT(o.radius, 0.0);
-      } else {
-        EXPECT_GE(o.half_extent.x, 0.0);
-        EXPECT_GE(o.half_extent.y, 0.0);
-        EXPECT_GE(o.half_extent.z, 0.0);
-      }
-      EXPECT_GE(o.max_speed, 0.0);
-      if (!o.dynamic) {
-        EXPECT_EQ(o.max_speed, 0.0);
-      }
-    }
-    std::sort(ids.begin(), ids.end());
-    EXPECT_TRUE(std::adjacent_find(ids.begin(), ids.end()) == ids.end()) << "seed " << seed;
-    for (const Camera& c : random_camera_path(scene, seed)) {
-      ViewBasis b;
-      EXPECT_TRUE(make_basis(c, &b)) << "seed " << seed << " " << describe(c);
-    }
-  }
+/// The hierarchy, on one thread and on three, gives brute force's answer.
+/// Returns that answer.
+Ids expect_as_brute_force(const std::vector<ObjectDesc>& objects, const Camera& cam, const RaySampling& s,
+                          const std::string& what) {
+  const Ids want = brute_force(objects, cam, s);
+  CastOptions one;
+  one.threads = 1;
+  CastStats st;
+  const Ids fast = visible_objects(objects, cam, s, one, &st);
+  EXPECT_EQ(fast, want) << what << " " << describe(cam) << "\n  only the hierarchy's: "
+                        << describe_ids(missing_ids(want, fast))
+                        << "\n  only brute force's: " << describe_ids(missing_ids(fast, want));
+  EXPECT_LE(st.in_frustum, objects.size());
+  EXPECT_EQ(st.threads, 1);
+  CastOptions three;
+  three.threads = 3;
+  EXPECT_EQ(visible_objects(objects, cam, s, three), fast) << what << " " << describe(cam);
+  return want;
 }
 
-TEST(Scenes, MoverRespectsMaxSpeed) {
-  const double dt = 1.0 / 30.0;
-  for (std::uint64_t seed = 0; seed < 10; ++seed) {
+TEST(Raycast, HierarchyEqualsBruteForceOnRandomScenes) {
+  // Paths with more than their share of hard cases: eyes on voxel planes,
+  // edges and corners, axis and diagonal views, extreme lenses, starts
+  // outside the bounds; scenes with objects outside the bounds; the same
+  // at huge and tiny coordinates.
+  CameraPathParams hard;
+  hard.frames = 4;
+  hard.snap_eye_chance = 0.4;
+  hard.axis_dir_chance = 0.3;
+  hard.extreme_lens_chance = 0.2;
+  hard.outside_chance = 0.2;
+  struct Transform {
+    double scale;
+    Vec3 offset;
+  };
+  const Transform transforms[] = {{1.0, Vec3(0.0)}, {1e-5, Vec3(3e7, -3e7, 3e7)}, {1e5, Vec3(4e9, -4e9, 4e9)}};
+  std::size_t visible = 0;
+  int frames = 0;
+  for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(scaled(10)); ++seed) {
     const SceneDesc scene = random_scene(random_scene_params(seed), seed);
-    Mover mover(scene, seed);
-    std::vector<ObjectDesc> prev = mover.objects();
-    for (int f = 0; f < 60; ++f) {
-      const std::vector<Move> moves = mover.step(dt);
-      const std::vector<ObjectDesc>& now = mover.objects();
-      for (std::size_t i = 0; i < now.size(); ++i) {
-        const double d = glm::length(now[i].center - prev[i].center);
-        if (!now[i].dynamic) {
-          ASSERT_EQ(d, 0.0);
-        } else {
-          ASSERT_LE(d, now[i].max_speed * dt) << "seed " << seed << " " << describe(now[i]);
-        }
+    const std::vector<Camera> path = random_camera_path(scene, mix_seed(seed, 77), hard);
+    for (const Transform& t : transforms) {
+      const SceneDesc moved = transform_scene(scene, t.scale, t.offset);
+      for (std::size_t k = 0; k < path.size(); ++k) {
+        const Camera cam = transform_camera(path[k], t.scale, t.offset);
+        RaySampling jittered;
+        jittered.cols = 32;
+        jittered.rows = 24;
+        jittered.corners = true;
+        jittered.seed = seed * 31 + k;
+        const std::string what = describe_scene(scene, seed) + " scale " + std::to_string(t.scale) + " frame " +
+                                 std::to_string(k);
+        visible += expect_as_brute_force(moved.objects, cam, jittered, what).size();
+        expect_as_brute_force(moved.objects, cam, pixel_centres(41, 23), what);
+        ++frames;
       }
-      std::vector<ObjectDesc> check = prev;
-      apply_moves_to(&check, moves);
-      for (std::size_t i = 0; i < now.size(); ++i) ASSERT_EQ(check[i].center, now[i].center);
-      prev = now;
     }
+  }
+  EXPECT_GT(visible, static_cast<std::size_t>(frames));  // Not a comparison of empty sets.
+}
+
+TEST(Raycast, HierarchyKeepsEveryTie) {
+  // A wall of unit boxes in z in [0, 1] seen head on from an eye on a grid
+  // corner: the ray straight ahead (the centre pixel of an odd image) meets
+  // the corner shared by four boxes, rays through shared edges meet two, all
+  // entered at the same depth.
+  std::vector<ObjectDesc> wall;
+  ObjectId id = 1;
+  for (int x = -4; x < 4; ++x)
+    for (int y = -4; y < 4; ++y) wall.push_back(box_between(id++, Vec3(x, y, 0), Vec3(x + 1, y + 1, 1)));
+  const Camera ahead = camera_along(Vec3(0.0, 0.0, 10.0), Vec3(0, 0, -1), 60.0, 1.0, 0.05, 100.0);
+  const Ids centre = expect_as_brute_force(wall, ahead, pixel_centres(1, 1), "wall, one ray");
+  // Boxes [-1, 0] and [0, 1] on both axes.
+  EXPECT_EQ(centre.size(), 4u) << describe_ids(centre);
+  expect_as_brute_force(wall, ahead, pixel_centres(63, 63), "wall");
+  RaySampling corners;
+  corners.cols = 16;
+  corners.rows = 16;
+  corners.jitter = false;
+  corners.corners = true;
+  expect_as_brute_force(wall, ahead, corners, "wall, corner rays");
+
+  // The eye inside three objects: all three are entered at `near` on every
+  // ray, and nothing behind them shows.
+  std::vector<ObjectDesc> around = {sphere(1, Vec3(0.0), 2.0), sphere(2, Vec3(0.5, 0.0, 0.0), 3.0),
+                                    box_around(3, Vec3(0.0), Vec3(1.0, 1.0, 1.0)),
+                                    sphere(4, Vec3(0.0, 0.0, -20.0), 5.0)};
+  EXPECT_EQ(expect_as_brute_force(around, camera_along(Vec3(0.0), Vec3(0, 0, -1)), pixel_centres(17, 9), "eye inside"),
+            (Ids{1, 2, 3}));
+
+  // Fifty spheres with one centre and radius (a leaf that cannot be split
+  // by centres) in front of a wall: all fifty tie on every ray that meets
+  // them.
+  std::vector<ObjectDesc> same;
+  for (ObjectId k = 1; k <= 50; ++k) same.push_back(sphere(k, Vec3(0.0, 0.0, -5.0), 1.0));
+  same.push_back(box_around(100, Vec3(0.0, 0.0, -8.0), Vec3(10.0, 10.0, 0.5)));
+  const Ids all = expect_as_brute_force(same, camera_along(Vec3(0.0), Vec3(0, 0, -1)), pixel_centres(16, 16),
+                                        "one centre");
+  EXPECT_EQ(all.size(), 51u);
+}
+
+TEST(Raycast, HierarchyEqualsBruteForceOnDegenerateLayouts) {
+  // Centres spaced geometrically (the surface-area split degenerates into a
+  // deep chain, so the build falls back to median splits), a dense row of
+  // abutting flat boxes, and objects of wildly different sizes.
+  std::vector<ObjectDesc> objs;
+  ObjectId id = 1;
+  double x = 1e-3;
+  for (int k = 0; k < 120; ++k, x *= 1.25) objs.push_back(sphere(id++, Vec3(x, 0.1 * (k % 7), -3.0 - 0.01 * k), 0.3 * x));
+  for (int k = 0; k < 100; ++k)
+    objs.push_back(box_between(id++, Vec3(-50.0 + k, -2.0, -40.0), Vec3(-49.0 + k, 2.0, -40.0)));
+  objs.push_back(box_around(id++, Vec3(0.0, -1e4, 0.0), Vec3(1e5, 1.0, 1e5)));
+  objs.push_back(sphere(id++, Vec3(3.0, 1.0, -10.0), 1e-6));
+  for (const Vec3& dir : {Vec3(0, 0, -1), Vec3(1, 0, -1), Vec3(0.3, -0.2, -1), Vec3(1, 0, 0)}) {
+    const Camera cam = camera_along(Vec3(0.0, 0.5, 0.0), dir, 90.0, 1.5, 1e-3, 1e6);
+    RaySampling s;
+    s.cols = 48;
+    s.rows = 32;
+    s.corners = true;
+    expect_as_brute_force(objs, cam, s, "degenerate");
   }
 }
 
-TEST(RayCast, VoxelsInViewAreThoseRaysCrossUpToTheirFirstHit) {
+TEST(Raycast, PixelCentresAreTheRenderersSampling) {
+  // Pixel (i, j) samples x = -1 + (2i+1)/W, y = -1 + (2j+1)/H (voxvis/render.h).
+  const SceneDesc scene = random_scene(random_scene_params(3), 3);
+  const Camera cam = random_camera_path(scene, 3, {.frames = 1})[0];
+  const int w = 13;
+  const int h = 7;
+  Ids by_pixel;
+  for (int j = 0; j < h; ++j)
+    for (int i = 0; i < w; ++i) {
+      const Ids hit = first_hit(scene.objects, cam, -1.0 + (2.0 * i + 1.0) / w, -1.0 + (2.0 * j + 1.0) / h);
+      by_pixel.insert(by_pixel.end(), hit.begin(), hit.end());
+    }
+  std::sort(by_pixel.begin(), by_pixel.end());
+  by_pixel.erase(std::unique(by_pixel.begin(), by_pixel.end()), by_pixel.end());
+  EXPECT_EQ(visible_objects(scene.objects, cam, pixel_centres(w, h)), by_pixel);
+}
+
+TEST(Raycast, VoxelsInViewAreThoseRaysCrossUpToTheirFirstHit) {
   // Unit voxels, 10 a side; one ray (a 1x1 sampling) along the row y = z = 5.
   const Vec3 lo(0.0), hi(10.0);
   const glm::ivec3 res(10);
