@@ -57,7 +57,8 @@ struct VerifyArgs {
   std::string pvs;         ///< PVS lines to check (`voxvis replay` output); empty: run the engine.
   std::string out;         ///< Output file; empty: stdout.
   std::string resolution = "640x360";  ///< WxH.
-  std::string method = "ids";          ///< ids | queries.
+  std::string reference = "auto";      ///< auto | egl | raycast: who finds the visible set.
+  std::string method = "ids";          ///< ids | queries (EGL only).
   bool full = false;       ///< Queries: probe every object in the frustum, not only the PVS.
   std::int64_t first_frame = 0;
   std::int64_t frame_count = -1;  ///< -1: to the end.
@@ -72,6 +73,7 @@ struct ReportArgs {
   std::string configs;   ///< Configurations file; empty: the default sweep.
   std::string out = "report";          ///< Output directory.
   std::string resolution = "640x360";  ///< The exact reference's and the levels' pixels.
+  std::string reference = "auto";      ///< auto | egl | raycast: who finds the exact set.
   std::int64_t frame_count = -1;       ///< The first N frames; -1: all.
   std::string egl_platform = "auto";
   int egl_device = -1;

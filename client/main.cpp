@@ -96,7 +96,8 @@ int run(int argc, char** argv) {
   double verify_tbv = -1.0;
   CLI::App* verify_cmd = app.add_subcommand(
       "verify",
-      "Render every frame headlessly (EGL) and report the visible objects missing from its PVS.");
+      "Render every frame headlessly (EGL, else the CPU ray caster) and report the visible objects missing "
+      "from its PVS.");
   verify_cmd->add_option("--scene", verify.engine.scene, "Scene file (JSON, format voxvis-scene/1)")
       ->required()
       ->type_name("FILE");
@@ -110,8 +111,13 @@ int run(int argc, char** argv) {
   verify_cmd->add_option("--resolution", verify.resolution, "Pixels of the rendered frames")
       ->type_name("WxH")
       ->capture_default_str();
+  verify_cmd->add_option("--reference", verify.reference,
+                         "Who finds the visible set at the pixel centres: egl (the headless renderer), raycast "
+                         "(the CPU ray caster), auto (EGL when a context starts, else the ray caster)")
+      ->type_name("auto|egl|raycast")
+      ->capture_default_str();
   verify_cmd->add_option("--method", verify.method,
-                         "ids: one id buffer read back; queries: one occlusion query per object")
+                         "With EGL, ids: one id buffer read back; queries: one occlusion query per object")
       ->type_name("ids|queries")
       ->capture_default_str();
   verify_cmd->add_flag("--full", verify.full,
@@ -155,6 +161,12 @@ int run(int argc, char** argv) {
       ->capture_default_str();
   report_cmd->add_option("--resolution", rep.resolution, "Pixels of the exact reference and of the levels")
       ->type_name("WxH")
+      ->capture_default_str();
+  report_cmd->add_option("--reference", rep.reference,
+                         "Who finds the exactly visible sets at the pixel centres: egl (the headless renderer), "
+                         "raycast (the CPU ray caster), auto (EGL when a context starts, else the ray caster); "
+                         "refinement levels need EGL either way")
+      ->type_name("auto|egl|raycast")
       ->capture_default_str();
   report_cmd->add_option("--frame-count", rep.frame_count, "Use the first N frames; -1: all")
       ->type_name("N")

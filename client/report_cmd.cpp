@@ -1,6 +1,7 @@
 // report_cmd.cpp — `voxvis report`: every configuration on the same frames,
 // time per frame next to tightness and misses against the exactly visible
-// set, as report.json, report.md and tradeoff.png (docs/accuracy.md).
+// set (EGL's, or the CPU ray caster's where no EGL is available), as
+// report.json, report.md and tradeoff.png (docs/accuracy.md).
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
@@ -21,6 +22,7 @@
 
 #include "cli.h"
 #include "common.h"
+#include "reference.h"
 #include "report_model.h"
 #include "voxvis/format.h"
 #include "voxvis/refine.h"
@@ -103,11 +105,15 @@ int run_report(const ReportArgs& args) {
   std::string message;
   int w = 0, h = 0;
   if (!render::parse_resolution(args.resolution, &w, &h, &message)) return report(FormatError{"", 0, "--resolution", message});
+  Reference reference_kind = Reference::Auto;
+  if (!parse_reference(args.reference, &reference_kind, &message))
+    return report(FormatError{"", 0, "--reference", message});
   render::ContextOptions ctx;
   if (!render::parse_platform(args.egl_platform, &ctx.platform, &message))
     return report(FormatError{"", 0, "--egl-platform", message});
   if (args.egl_device < -1) return report(FormatError{"", 0, "--egl-device", "must be >= 0"});
   ctx.device = args.egl_device;
+  reference_kind = resolve_reference(reference_kind, ctx);
   if (args.frame_count < -1 || args.frame_count == 0)
     return report(FormatError{"", 0, "--frame-count", "must be >= 1 (or -1: all)"});
 
@@ -129,11 +135,13 @@ int run_report(const ReportArgs& args) {
     const glm::ivec3 g = desc.grid ? *desc.grid : Scene::auto_resolution(desc, base);
     configs = default_configs(g);
   }
+  bool has_levels = false;
   for (std::size_t i = 0; i < configs.size(); ++i) {
     render::Level l;
     if (!render::parse_level(configs[i].level, &l, &message))
       return report_message((args.configs.empty() ? std::string("default configuration") : args.configs) +
                             ": configs[" + std::to_string(i) + "].level: " + message);
+    has_levels = has_levels || l.kind != render::LevelKind::None;
   }
 
   // The frames.
@@ -160,13 +168,25 @@ int run_report(const ReportArgs& args) {
   std::filesystem::create_directories(dir, ec);
   if (ec) return report(FormatError{args.out, 0, "--out", "cannot create the directory: " + ec.message()});
 
-  // The reference: the exactly visible set of every frame.
+  // The reference: the exactly visible set of every frame at the pixel
+  // centres of w x h, computed once here and shared by every configuration.
+  // EGL renders it (and runs the refinement levels); the CPU ray caster
+  // casts it where no EGL is available, or when asked to.
   std::string egl_error;
-  std::unique_ptr<render::Renderer> renderer = render::Renderer::create(ctx, &egl_error);
-  const bool have_exact = renderer != nullptr;
-  if (!have_exact && !args.quiet)
-    std::fprintf(stderr, "voxvis: EGL: %s; tightness cannot be measured, and refinement levels cannot run\n",
-                 egl_error.c_str());
+  std::unique_ptr<render::Renderer> renderer;
+  if (reference_kind != Reference::Raycast || has_levels) renderer = render::Renderer::create(ctx, &egl_error);
+  if (!renderer && reference_kind == Reference::Egl) return report_message("EGL: " + egl_error);
+  const bool by_egl = renderer != nullptr && reference_kind != Reference::Raycast;
+  const std::string reference = std::to_string(w) + "x" + std::to_string(h) + " (" +
+                                (by_egl ? "EGL, " + renderer->info().gl_renderer : raycast_summary()) + ")";
+  if (!args.quiet) {
+    if (!renderer && reference_kind == Reference::Auto)
+      std::fprintf(stderr, "voxvis: EGL: %s; the exact reference is the CPU ray caster, and refinement levels "
+                   "cannot run\n", egl_error.c_str());
+    else if (!renderer && has_levels)
+      std::fprintf(stderr, "voxvis: EGL: %s; refinement levels cannot run\n", egl_error.c_str());
+    std::fprintf(stderr, "voxvis: exactly visible sets at %s\n", reference.c_str());
+  }
   std::unordered_map<ObjectId, std::size_t> slot;
   for (std::size_t i = 0; i < desc.objects.size(); ++i) slot[desc.objects[i].id] = i;
   auto apply = [&](std::vector<ObjectDesc>* objects, const FrameInput& f) {
@@ -179,13 +199,15 @@ int run_report(const ReportArgs& args) {
   std::uint64_t exact_total = 0;
   Progress progress(!args.quiet && ::isatty(STDERR_FILENO) != 0, frames.size() * (configs.size() + 1));
   std::size_t done = 0;
-  if (have_exact) {
+  {
     std::vector<ObjectDesc> objects = desc.objects;
     render::VisibleStats vs;
     for (std::size_t k = 0; k < frames.size(); ++k) {
       apply(&objects, frames[k]);
-      if (!renderer->visible(objects, frames[k].camera, render::VisibleOptions{w, h}, nullptr, &exact[k], &vs,
-                             &message)) {
+      const bool ok = by_egl ? renderer->visible(objects, frames[k].camera, render::VisibleOptions{w, h}, nullptr,
+                                                 &exact[k], &vs, &message)
+                             : raycast_visible(objects, frames[k].camera, w, h, &exact[k], &vs, &message);
+      if (!ok) {
         progress.finish();
         return report(FormatError{args.frames, frames[k].line, "", message});
       }
@@ -206,7 +228,7 @@ int run_report(const ReportArgs& args) {
     SceneDesc d = desc;
     if (c.grid) d.grid = *c.grid;
     std::unique_ptr<Scene> scene;
-    if (level.kind != render::LevelKind::None && !have_exact) {
+    if (level.kind != render::LevelKind::None && !renderer) {
       row.error = "EGL: " + egl_error;
     } else if (const Status st = Scene::create(d, opt, &scene); !st.ok) {
       row.error = st.str();
@@ -251,11 +273,9 @@ int run_report(const ReportArgs& args) {
       engine_ms.push_back(fr.stats.time_us / 1000.0);
       total_ms.push_back(fr.stats.time_us / 1000.0 + refine_ms);
       out_total += out.size();
-      if (have_exact) {
-        std::vector<ObjectId> missed;
-        std::set_difference(exact[k].begin(), exact[k].end(), out.begin(), out.end(), std::back_inserter(missed));
-        row.misses += missed.size();
-      }
+      std::vector<ObjectId> missed;
+      std::set_difference(exact[k].begin(), exact[k].end(), out.begin(), out.end(), std::back_inserter(missed));
+      row.misses += missed.size();
       progress.update(++done);
     }
     if (row.error.empty()) {
@@ -264,8 +284,8 @@ int run_report(const ReportArgs& args) {
       row.median_ms = t.median;
       row.p99_ms = t.p99;
       row.engine_ms = e.median;
-      row.tightness = have_exact && exact_total > 0 ? static_cast<double>(out_total) / static_cast<double>(exact_total)
-                                                    : std::nan("");
+      row.tightness =
+          exact_total > 0 ? static_cast<double>(out_total) / static_cast<double>(exact_total) : std::nan("");
       row.queries = static_cast<double>(queries) / static_cast<double>(std::max<std::size_t>(row.frames, 1));
     }
     rows.push_back(row);
@@ -274,14 +294,12 @@ int run_report(const ReportArgs& args) {
   mark_pareto(&rows);
 
   // report.json, report.md, tradeoff.dat / pareto.dat / tradeoff.gp and the plot.
-  const std::string reference =
-      have_exact ? std::to_string(w) + "x" + std::to_string(h) + " (EGL, " + renderer->info().gl_renderer + ")"
-                 : std::string("none (no EGL)");
   nlohmann::json j;
   j["format"] = "voxvis-report/1";
   j["scene"] = args.scene;
   j["frames"] = frames.size();
   j["reference"] = reference;
+  j["reference_source"] = by_egl ? "egl" : "raycast";
   j["exactly_visible_total"] = exact_total;
   for (std::size_t i = 0; i < rows.size(); ++i) {
     const ReportRow& r = rows[i];
@@ -330,7 +348,8 @@ int run_report(const ReportArgs& args) {
     return report_message(message);
   int status = kExitOk;
   if (data.empty() && missing.empty()) {
-    std::fprintf(stderr, "voxvis: no plot: no configuration has a tightness (no EGL reference)\n");
+    std::fprintf(stderr, "voxvis: no plot: no configuration has a tightness (none ran, or nothing is exactly "
+                 "visible on these frames)\n");
   } else {
     std::string why;
     if (!run_gnuplot(dir, &why)) {

@@ -1,4 +1,5 @@
 // verify_cmd.cpp — `voxvis verify`: renders every frame headlessly (render/),
+// or casts it with the CPU ray caster (raycast/) where no EGL is available,
 // takes the objects that show at pixel level, and reports each one missing
 // from the frame's PVS (the engine's, or a PVS file's).
 #include <algorithm>
@@ -18,6 +19,7 @@
 #include "cli.h"
 #include "common.h"
 #include "output_file.h"
+#include "reference.h"
 #include "voxvis/format.h"
 #include "voxvis/render.h"
 #include "voxvis/scene.h"
@@ -124,11 +126,17 @@ int run_verify(const VerifyArgs& args) {
   if (!render::parse_resolution(args.resolution, &w, &h, &message)) return report(FormatError{"", 0, "--resolution", message});
   render::Method method;
   if (!render::parse_method(args.method, &method, &message)) return report(FormatError{"", 0, "--method", message});
+  Reference reference_kind = Reference::Auto;
+  if (!parse_reference(args.reference, &reference_kind, &message))
+    return report(FormatError{"", 0, "--reference", message});
+  if (reference_kind == Reference::Raycast && method == render::Method::Queries)
+    return report(FormatError{"", 0, "--method", "queries needs the EGL reference (not --reference raycast)"});
   render::ContextOptions ctx;
   if (!render::parse_platform(args.egl_platform, &ctx.platform, &message))
     return report(FormatError{"", 0, "--egl-platform", message});
   if (args.egl_device < -1) return report(FormatError{"", 0, "--egl-device", "must be >= 0"});
   ctx.device = args.egl_device;
+  reference_kind = resolve_reference(reference_kind, ctx);
   if (args.first_frame < 0) return report(FormatError{"", 0, "--first-frame", "must be >= 0"});
   if (args.frame_count < -1) return report(FormatError{"", 0, "--frame-count", "must be >= 0"});
 
@@ -161,10 +169,17 @@ int run_verify(const VerifyArgs& args) {
   OutputFile out;
   if (!out.open(args.out, &message)) return report(FormatError{args.out, 0, "", message});
 
-  // The renderer before the engine: a machine without EGL fails at once.
-  std::unique_ptr<render::Renderer> renderer = render::Renderer::create(ctx, &message);
-  if (!renderer) return report_message("EGL: " + message);
-  if (w > renderer->info().max_size || h > renderer->info().max_size)
+  // The reference before the engine: EGL's renderer, else (--reference auto)
+  // the CPU ray caster through the same pixel centres. With --reference egl,
+  // a machine without EGL fails at once.
+  std::unique_ptr<render::Renderer> renderer;
+  std::string egl_error;
+  if (reference_kind != Reference::Raycast) renderer = render::Renderer::create(ctx, &egl_error);
+  if (!renderer && reference_kind == Reference::Egl) return report_message("EGL: " + egl_error);
+  const bool by_egl = renderer != nullptr;
+  if (!by_egl && method == render::Method::Queries)
+    return report(FormatError{"", 0, "--method", "queries needs the EGL reference (EGL: " + egl_error + ")"});
+  if (by_egl && (w > renderer->info().max_size || h > renderer->info().max_size))
     return report(FormatError{"", 0, "--resolution",
                               args.resolution + " exceeds this OpenGL's limit of " +
                                   std::to_string(renderer->info().max_size) + " pixels a side"});
@@ -175,10 +190,13 @@ int run_verify(const VerifyArgs& args) {
     if (!build_scene(args.engine, &text, desc, options, &scene, &code)) return code;
     viewer = scene->add_viewer();
   }
-  const bool checks_all = method == render::Method::Ids || args.full;
+  const bool checks_all = !by_egl || method == render::Method::Ids || args.full;
+  const char* by = by_egl ? render::method_name(method) : "raycast";
   if (!args.quiet) {
-    std::fprintf(stderr, "voxvis: verifying at %dx%d by %s on %s%s\n", w, h, render::method_name(method),
-                 renderer->info().summary().c_str(),
+    if (!by_egl && reference_kind == Reference::Auto)
+      std::fprintf(stderr, "voxvis: EGL: %s; verifying with the CPU ray caster\n", egl_error.c_str());
+    std::fprintf(stderr, "voxvis: verifying at %dx%d by %s on %s%s\n", w, h, by,
+                 by_egl ? renderer->info().summary().c_str() : raycast_summary().c_str(),
                  checks_all ? "" : "; only the PVS is probed, misses are not checked (add --full)");
   }
 
@@ -235,9 +253,10 @@ int run_verify(const VerifyArgs& args) {
       ++index;
       continue;
     }
-    render::VisibleOptions vo{w, h, method};
-    if (!renderer->visible(objects, frame.camera, vo, checks_all ? nullptr : &pvs, &vis, &rs, &message))
-      return fail(report(FormatError{args.frames, line_no, "", message}));
+    const bool ok = by_egl ? renderer->visible(objects, frame.camera, render::VisibleOptions{w, h, method},
+                                               checks_all ? nullptr : &pvs, &vis, &rs, &message)
+                           : raycast_visible(objects, frame.camera, w, h, &vis, &rs, &message);
+    if (!ok) return fail(report(FormatError{args.frames, line_no, "", message}));
     missed.clear();
     std::set_difference(vis.begin(), vis.end(), pvs.begin(), pvs.end(), std::back_inserter(missed));
     out_line = "{\"frame\":" + std::to_string(index) + ",\"visible\":" + json_ids(vis) +
@@ -288,7 +307,7 @@ int run_verify(const VerifyArgs& args) {
                  "voxvis: verified %llu frames at %dx%d (%s): %llu missed object-frames in %llu frames; "
                  "visible %llu, PVS %llu, tightness %.3f; draw ms median %.2f p99 %.2f, queries %.2f, "
                  "read %.2f\n",
-                 static_cast<unsigned long long>(verified), w, h, render::method_name(method),
+                 static_cast<unsigned long long>(verified), w, h, by,
                  static_cast<unsigned long long>(total_missed), static_cast<unsigned long long>(frames_missed),
                  static_cast<unsigned long long>(total_visible), static_cast<unsigned long long>(total_pvs),
                  total_visible ? static_cast<double>(total_pvs) / static_cast<double>(total_visible) : 0.0,

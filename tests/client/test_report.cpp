@@ -1,9 +1,13 @@
 // `voxvis report`: its pure part in process (configurations, Pareto rows,
 // the table), and the command on a small scene: rows that agree with
-// `replay` and `verify` run by hand, a configuration that cannot run next to
-// ones that do, bad configuration files.
+// `replay` and `verify` run by hand, the CPU ray caster's reference against
+// the ray caster run by hand, the reference where no EGL is available, a
+// configuration that cannot run next to ones that do, bad configuration files.
+#include <algorithm>
 #include <cstdint>
+#include <iterator>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include <gmock/gmock.h>
@@ -15,6 +19,7 @@
 #include "report_model.h"
 #include "voxvis/format.h"
 #include "voxvis/generate.h"
+#include "voxvis/raycast.h"
 
 namespace voxvis::test {
 namespace {
@@ -97,7 +102,28 @@ TEST(ReportModel, ConfigurationFilesAndTheirErrors) {
   EXPECT_TRUE(levels);
 }
 
-class Report : public Cli {};
+class Report : public Cli {
+ protected:
+  /// The ray caster's exactly visible set of every frame of `frames` (the
+  /// scene's moves applied), through the pixel centres of w x h.
+  std::vector<std::vector<ObjectId>> cast_by_hand(const std::string& scene, const std::string& frames, int w,
+                                                   int h) {
+    SceneDesc desc;
+    FormatError error;
+    EXPECT_TRUE(parse_scene(slurp(path(scene)), scene, &desc, &error)) << error.str();
+    std::unordered_map<ObjectId, std::size_t> slot;
+    for (std::size_t i = 0; i < desc.objects.size(); ++i) slot[desc.objects[i].id] = i;
+    std::vector<std::vector<ObjectId>> exact;
+    int line = 0;
+    for (const std::string& l : lines_of(slurp(path(frames)))) {
+      FrameInput f;
+      EXPECT_TRUE(parse_frame_line(l, frames, ++line, &f, &error)) << error.str();
+      for (const Move& m : f.moves) desc.objects[slot.at(m.id)].center = m.center;
+      exact.push_back(raycast::visible_objects(desc.objects, f.camera, raycast::pixel_centres(w, h)));
+    }
+    return exact;
+  }
+};
 
 TEST_F(Report, RowsAgreeWithReplayAndVerifyAndAFailedConfigurationLeavesTheOthers) {
   write_paper("s.json", "f.jsonl", 300, 30, 8);
@@ -144,6 +170,89 @@ TEST_F(Report, RowsAgreeWithReplayAndVerifyAndAFailedConfigurationLeavesTheOther
   EXPECT_GT(q["queries_per_frame"].get<double>(), 0.0);
 }
 
+TEST_F(Report, TheRayCastersReferenceIsTheRayCasterRunByHand) {
+  write_paper("s.json", "f.jsonl", 300, 30, 6);
+  spit(path("c.json"), R"({"configs": [{"name": "off", "occlusion_buffer": 0}, {"name": "default"}]})");
+  Result r = run({"report", "--scene", path("s.json"), "--frames", path("f.jsonl"), "--configs", path("c.json"),
+                  "--out", path("out"), "--resolution", "96x54", "--reference", "raycast"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("exactly visible sets at 96x54 (CPU ray caster"));
+  const nlohmann::json rep = nlohmann::json::parse(slurp(path("out/report.json")));
+  EXPECT_EQ(rep["reference_source"], "raycast");
+  EXPECT_THAT(rep["reference"].get<std::string>(), HasSubstr("96x54 (CPU ray caster"));
+  EXPECT_THAT(slurp(path("out/report.md")), HasSubstr("exact at 96x54 (CPU ray caster"));
+
+  // By hand: the caster through the same pixel centres, replay's PVS.
+  const std::vector<std::vector<ObjectId>> exact = cast_by_hand("s.json", "f.jsonl", 96, 54);
+  ASSERT_EQ(exact.size(), 6u);
+  std::uint64_t exact_total = 0;
+  for (const auto& e : exact) exact_total += e.size();
+  ASSERT_GT(exact_total, 0u);
+  EXPECT_EQ(rep["exactly_visible_total"].get<std::uint64_t>(), exact_total);
+  const std::pair<const char*, const char*> configs[] = {{"off", "0"}, {"default", "128"}};
+  for (std::size_t i = 0; i < 2; ++i) {
+    r = run({"replay", "--scene", path("s.json"), "--frames", path("f.jsonl"), "--occlusion-buffer",
+             configs[i].second, "--out", path("pvs.jsonl"), "-q"});
+    ASSERT_EQ(r.status, 0) << r.err;
+    const std::vector<std::string> lines = lines_of(slurp(path("pvs.jsonl")));
+    ASSERT_EQ(lines.size(), exact.size());
+    std::uint64_t pvs_total = 0, misses = 0;
+    for (std::size_t k = 0; k < lines.size(); ++k) {
+      const nlohmann::json line = nlohmann::json::parse(lines[k]);
+      std::vector<ObjectId> pvs;
+      for (const auto& id : line["pvs"]) pvs.push_back(id.get<ObjectId>());
+      std::sort(pvs.begin(), pvs.end());
+      pvs_total += pvs.size();
+      std::vector<ObjectId> missed;
+      std::set_difference(exact[k].begin(), exact[k].end(), pvs.begin(), pvs.end(), std::back_inserter(missed));
+      misses += missed.size();
+    }
+    const nlohmann::json& row = rep["rows"][i];
+    EXPECT_EQ(row["name"], configs[i].first);
+    EXPECT_DOUBLE_EQ(row["tightness"].get<double>(),
+                     static_cast<double>(pvs_total) / static_cast<double>(exact_total))
+        << configs[i].first;
+    EXPECT_EQ(row["misses"].get<std::uint64_t>(), misses) << configs[i].first;
+  }
+}
+
+TEST_F(Report, WithoutEglTheRayCasterIsTheReferenceAndOnlyLevelsFail) {
+  write_paper("s.json", "f.jsonl", 200, 20, 4);
+  spit(path("c.json"), R"({"configs": [{"name": "default"}, {"name": "queries", "level": "queries"}]})");
+  const std::vector<std::string> no_egl = {"__EGL_VENDOR_LIBRARY_FILENAMES=/nonexistent/voxvis-no-egl.json"};
+  const std::vector<std::string> args = {"report", "--scene", path("s.json"), "--frames", path("f.jsonl"),
+                                         "--configs", path("c.json"), "--resolution", "64x36"};
+  auto with = [&](std::vector<std::string> extra) {
+    std::vector<std::string> a = args;
+    a.insert(a.end(), extra.begin(), extra.end());
+    return a;
+  };
+  // auto, the default: the ray caster, said on stderr and in the header.
+  Result r = run(with({"--out", path("auto")}), no_egl);
+  EXPECT_EQ(r.status, 2) << r.err;  // The level's row failed.
+  EXPECT_THAT(r.err, HasSubstr("EGL: no EGL implementation found"));
+  EXPECT_THAT(r.err, HasSubstr("the exact reference is the CPU ray caster"));
+  EXPECT_THAT(r.err, HasSubstr("configuration 'queries' could not run: EGL: no EGL implementation found"));
+  const nlohmann::json rep = nlohmann::json::parse(slurp(path("auto/report.json")));
+  EXPECT_EQ(rep["reference_source"], "raycast");
+  ASSERT_EQ(rep["rows"].size(), 2u);
+  EXPECT_FALSE(rep["rows"][0].contains("error"));
+  EXPECT_TRUE(rep["rows"][0]["tightness"].is_number());
+  EXPECT_THAT(rep["rows"][1]["error"].get<std::string>(), HasSubstr("EGL: no EGL implementation found"));
+  EXPECT_THAT(slurp(path("auto/report.md")), HasSubstr("exact at 64x36 (CPU ray caster"));
+  // The same numbers as --reference raycast.
+  r = run(with({"--out", path("raycast"), "--reference", "raycast", "-q"}), no_egl);
+  EXPECT_EQ(r.status, 2) << r.err;
+  const nlohmann::json cast = nlohmann::json::parse(slurp(path("raycast/report.json")));
+  EXPECT_EQ(cast["exactly_visible_total"], rep["exactly_visible_total"]);
+  EXPECT_EQ(cast["rows"][0]["tightness"], rep["rows"][0]["tightness"]);
+  EXPECT_EQ(cast["rows"][0]["misses"], rep["rows"][0]["misses"]);
+  // egl insists.
+  r = run(with({"--out", path("egl"), "--reference", "egl"}), no_egl);
+  EXPECT_EQ(r.status, 2) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("voxvis: error: EGL: no EGL implementation found"));
+}
+
 TEST_F(Report, BadConfigurationFilesAreErrorsNamingTheEntry) {
   spit(path("s.json"), scene_to_json(make_paper_scene(PaperSceneParams{})));
   spit(path("f.jsonl"), "");
@@ -159,6 +268,9 @@ TEST_F(Report, BadConfigurationFilesAreErrorsNamingTheEntry) {
   r = run({"report", "--scene", path("s.json"), "--frames", path("f.jsonl"), "--egl-device", "-2"});
   EXPECT_EQ(r.status, 2);
   EXPECT_THAT(r.err, HasSubstr("--egl-device: must be >= 0"));
+  r = run({"report", "--scene", path("s.json"), "--frames", path("f.jsonl"), "--reference", "gpu"});
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.err, HasSubstr("voxvis: error: --reference: unknown reference 'gpu' (known: auto, egl, raycast)"));
   r = run({"report", "--scene", path("s.json"), "--frames", path("f.jsonl"), "--resolution", "0x4"});
   EXPECT_EQ(r.status, 2);
   EXPECT_THAT(r.err, HasSubstr("--resolution: width and height must be >= 1"));

@@ -1,13 +1,17 @@
 // `voxvis verify` on this machine's EGL (llvmpipe in CI): the engine's PVS
 // misses nothing on generated scenes, a PVS cut on purpose is caught to the
-// object, slices of a job concatenate to the whole, bad input is an error.
+// object, slices of a job concatenate to the whole, the CPU ray caster's
+// reference agrees with EGL's but for ties, bad input is an error.
 // Few frames at low resolutions: each frame costs milliseconds on llvmpipe.
 #include <algorithm>
 #include <cstdint>
+#include <limits>
 #include <set>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
+#include <glm/geometric.hpp>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -17,11 +21,73 @@
 #include "scenes.h"
 #include "voxvis/format.h"
 #include "voxvis/generate.h"
+#include "voxvis/raycast.h"
 
 namespace voxvis::test {
 namespace {
 
 using ::testing::HasSubstr;
+
+/// Where an object may be the first hit at the pixel centres of w x h when
+/// every object may be off by `eps` of its distance from the eye (a margin
+/// far above single-precision depths and silhouettes): `possible`, at some
+/// pixel centre the object grown by that much is entered no later than every
+/// other object shrunk by it; `robust`, at some pixel centre the object
+/// shrunk by it is entered before every other object grown by it.
+struct Firstness {
+  std::set<ObjectId> possible;
+  std::set<ObjectId> robust;
+};
+
+Firstness firstness(const std::vector<ObjectDesc>& objects, const Camera& cam, int w, int h, double eps) {
+  raycast::ViewBasis b;
+  EXPECT_TRUE(raycast::make_basis(cam, &b));
+  constexpr double kNone = std::numeric_limits<double>::infinity();
+  std::vector<ObjectDesc> grown = objects, shrunk = objects;
+  std::vector<bool> has_shrunk(objects.size(), true);
+  for (std::size_t i = 0; i < objects.size(); ++i) {
+    const ObjectDesc& o = objects[i];
+    const double size = o.shape == Shape::Sphere ? o.radius : std::max({o.half_extent.x, o.half_extent.y, o.half_extent.z});
+    const double g = eps * (glm::length(o.center - b.eye) + size);
+    if (o.shape == Shape::Sphere) {
+      grown[i].radius += g;
+      shrunk[i].radius -= g;
+      has_shrunk[i] = shrunk[i].radius > 0.0;
+    } else {
+      grown[i].half_extent += Vec3(g);
+      shrunk[i].half_extent -= Vec3(g);
+      has_shrunk[i] = shrunk[i].half_extent.x >= 0.0 && shrunk[i].half_extent.y >= 0.0 && shrunk[i].half_extent.z >= 0.0;
+    }
+  }
+  auto entry = [&](const ObjectDesc& o, const Vec3& d) {
+    double t0 = 0.0, t1 = 0.0;
+    if (!raycast::intersect(o, b.eye, d, &t0, &t1)) return kNone;
+    const double in = std::max(t0, b.near);
+    return in <= std::min(t1, b.far) ? in : kNone;
+  };
+  Firstness f;
+  std::vector<double> eg(objects.size()), es(objects.size());
+  for (int j = 0; j < h; ++j)
+    for (int i = 0; i < w; ++i) {
+      const Vec3 d = b.ray_dir(-1.0 + (2.0 * i + 1.0) / w, -1.0 + (2.0 * j + 1.0) / h);
+      // The two least entries of each kind, so that "every other" is O(1).
+      double g1 = kNone, g2 = kNone, s1 = kNone, s2 = kNone;
+      for (std::size_t k = 0; k < objects.size(); ++k) {
+        eg[k] = entry(grown[k], d);
+        es[k] = has_shrunk[k] ? entry(shrunk[k], d) : kNone;
+        if (eg[k] < g1) { g2 = g1; g1 = eg[k]; } else if (eg[k] < g2) { g2 = eg[k]; }
+        if (es[k] < s1) { s2 = s1; s1 = es[k]; } else if (es[k] < s2) { s2 = es[k]; }
+      }
+      for (std::size_t k = 0; k < objects.size(); ++k) {
+        if (eg[k] == kNone) continue;
+        const double other_shrunk = es[k] == s1 ? s2 : s1;
+        const double other_grown = eg[k] == g1 ? g2 : g1;
+        if (eg[k] <= other_shrunk) f.possible.insert(objects[k].id);
+        if (es[k] != kNone && es[k] < other_grown) f.robust.insert(objects[k].id);
+      }
+    }
+  return f;
+}
 
 std::vector<std::uint64_t> ids_of(const nlohmann::json& a) {
   std::vector<std::uint64_t> v;
@@ -170,6 +236,109 @@ TEST_F(Verify, SlicesConcatenateToTheWholeJob) {
   EXPECT_EQ(joined, whole);
 }
 
+TEST_F(Verify, TheRayCasterAgreesWithEglButForTies) {
+  // What may differ, at the same pixel centres: EGL's id buffer keeps one
+  // object of a depth tie where the caster keeps all, and single-precision
+  // depths and silhouettes may settle near-ties and grazing rays otherwise.
+  // So every object the two disagree on is nowhere robustly the first hit
+  // (Firstness, eps 1e-5); everything either sees is possibly first
+  // somewhere; and with --method queries --full, which counts every object of
+  // a tie, exact ties no longer differ.
+  struct Totals {
+    std::size_t robust = 0, only_cast = 0, only_egl = 0;
+  };
+  auto compare = [&](const std::string& scene, const std::string& frames, int w, int h,
+                     const std::vector<std::string>& egl_extra, Totals* totals) {
+    const std::string res = std::to_string(w) + "x" + std::to_string(h);
+    const std::vector<std::string> base = {"verify", "--scene", path(scene), "--frames", path(frames),
+                                           "--resolution", res, "-q"};
+    std::vector<std::string> args = base;
+    args.insert(args.end(), {"--reference", "raycast"});
+    Result r = run(args);
+    ASSERT_EQ(r.status, 0) << r.err;
+    const auto cast = lines(r.out);
+    args = base;
+    args.insert(args.end(), {"--reference", "egl"});
+    args.insert(args.end(), egl_extra.begin(), egl_extra.end());
+    r = run(args);
+    ASSERT_EQ(r.status, 0) << r.err;
+    const auto egl = lines(r.out);
+    ASSERT_EQ(cast.size(), egl.size());
+
+    SceneDesc desc;
+    FormatError error;
+    ASSERT_TRUE(parse_scene(slurp(path(scene)), scene, &desc, &error)) << error.str();
+    std::unordered_map<ObjectId, std::size_t> slot;
+    for (std::size_t i = 0; i < desc.objects.size(); ++i) slot[desc.objects[i].id] = i;
+    const std::vector<std::string> frame_lines = lines_of(slurp(path(frames)));
+    ASSERT_EQ(frame_lines.size(), cast.size());
+    for (std::size_t k = 0; k < cast.size(); ++k) {
+      FrameInput f;
+      ASSERT_TRUE(parse_frame_line(frame_lines[k], frames, static_cast<int>(k + 1), &f, &error)) << error.str();
+      for (const Move& m : f.moves) desc.objects[slot.at(m.id)].center = m.center;
+      const auto c = ids_of(cast[k]["visible"]), e = ids_of(egl[k]["visible"]);
+      // verify's ray caster is the module's, at the pixel centres.
+      const std::vector<ObjectId> by_hand =
+          raycast::visible_objects(desc.objects, f.camera, raycast::pixel_centres(w, h));
+      EXPECT_EQ(c, std::vector<std::uint64_t>(by_hand.begin(), by_hand.end())) << scene << " frame " << k;
+      const Firstness first = firstness(desc.objects, f.camera, w, h, 1e-5);
+      const std::set<std::uint64_t> cs(c.begin(), c.end()), es(e.begin(), e.end());
+      for (const std::uint64_t id : cs) EXPECT_TRUE(first.possible.count(static_cast<ObjectId>(id))) << id;
+      for (const std::uint64_t id : es)
+        EXPECT_TRUE(first.possible.count(static_cast<ObjectId>(id)))
+            << scene << " frame " << k << ": EGL sees " << id << ", which is nowhere nearly the first hit";
+      for (const ObjectId id : first.robust) {
+        EXPECT_TRUE(cs.count(id) && es.count(id))
+            << scene << " frame " << k << ": " << id << " is robustly the first hit at some pixel centre, yet "
+            << (cs.count(id) ? "EGL" : "the ray caster") << " misses it";
+      }
+      totals->robust += first.robust.size();
+      for (const std::uint64_t id : cs) totals->only_cast += es.count(id) ? 0 : 1;
+      for (const std::uint64_t id : es) totals->only_egl += cs.count(id) ? 0 : 1;
+    }
+  };
+
+  // The paper's spheres, some moving: no exact ties.
+  write_paper(5);
+  Totals paper;
+  compare("paper.json", "paper.jsonl", 80, 45, {}, &paper);
+  EXPECT_GT(paper.robust, 50u);
+  EXPECT_LE(paper.only_cast + paper.only_egl, 2u);
+
+  // Boxes built to tie: a wall of abutting unit boxes seen head on (the
+  // centre pixel of the odd image looks at a corner of four), and copies of
+  // three of them and of a sphere, entered at the same depth on every ray.
+  SceneDesc ties;
+  ties.bounds_min = Vec3(-20.0);
+  ties.bounds_max = Vec3(20.0);
+  ObjectId id = 1;
+  for (int x = -3; x < 3; ++x)
+    for (int y = -3; y < 3; ++y) ties.objects.push_back(box_between(id++, Vec3(x, y, -11), Vec3(x + 1, y + 1, -10)));
+  for (const ObjectId copy : {8u, 15u, 22u}) {
+    ObjectDesc o = ties.objects[copy - 1];
+    o.id = 100 + copy;
+    ties.objects.push_back(o);
+  }
+  ties.objects.push_back(sphere(200, Vec3(1.5, -1.5, -6.0), 0.7));
+  ties.objects.push_back(sphere(201, Vec3(1.5, -1.5, -6.0), 0.7));
+  spit(path("ties.json"), scene_to_json(ties));
+  std::string frames;
+  for (const Vec3& eye : {Vec3(0.0), Vec3(0.5, 0.25, 0.0), Vec3(-1.0, 1.0, 2.0)}) {
+    FrameInput f;
+    f.camera = camera_along(eye, Vec3(0, 0, -1), 60.0, 1.0, 0.05, 100.0);
+    frames += frame_to_json(f) + "\n";
+  }
+  spit(path("ties.jsonl"), frames);
+  Totals ids;
+  compare("ties.json", "ties.jsonl", 33, 33, {}, &ids);
+  EXPECT_GE(ids.only_cast, 3u);  // At least the copies, one frame or another.
+  EXPECT_EQ(ids.only_egl, 0u);
+  Totals queries;
+  compare("ties.json", "ties.jsonl", 33, 33, {"--method", "queries", "--full"}, &queries);
+  EXPECT_EQ(queries.only_cast, 0u);
+  EXPECT_EQ(queries.only_egl, 0u);
+}
+
 TEST_F(Verify, BadInputIsAClearError) {
   write_paper(4);
   const std::vector<std::string> base = {"verify", "--scene", path("paper.json"), "--frames", path("paper.jsonl")};
@@ -212,6 +381,9 @@ TEST_F(Verify, BadInputIsAClearError) {
       {with({"--resolution", "-5x10"}), "--resolution: expected WIDTHxHEIGHT"},
       {with({"--resolution", too_wide}), "--resolution: " + too_wide + " exceeds this OpenGL's limit"},
       {with({"--method", "magic"}), "--method: unknown method 'magic'"},
+      {with({"--reference", "gpu"}), "--reference: unknown reference 'gpu' (known: auto, egl, raycast)"},
+      {with({"--reference", "raycast", "--method", "queries"}),
+       "--method: queries needs the EGL reference (not --reference raycast)"},
       {with({"--egl-platform", "x11"}), "--egl-platform: unknown EGL platform 'x11'"},
       {with({"--egl-device", "7", "--egl-platform", "device"}), "--egl-device 7 does not exist"},
       {with({"--first-frame", "9"}), "--first-frame: is 9, the file has 4 frames"},
@@ -229,12 +401,30 @@ TEST_F(Verify, BadInputIsAClearError) {
     EXPECT_THAT(r.err, HasSubstr("voxvis: error: ")) << c.message;
     EXPECT_THAT(r.err, HasSubstr(c.message)) << r.err;
   }
-  // No EGL on the machine: glvnd finds no vendor library.
-  r = run(base, {"__EGL_VENDOR_LIBRARY_FILENAMES=/nonexistent/voxvis-no-egl.json"});
+  // No EGL on the machine (glvnd finds no vendor library): --reference egl
+  // fails, and so does a method only EGL has; auto falls back to the ray
+  // caster and says so.
+  const std::vector<std::string> no_egl = {"__EGL_VENDOR_LIBRARY_FILENAMES=/nonexistent/voxvis-no-egl.json"};
+  r = run(with({"--reference", "egl"}), no_egl);
   EXPECT_EQ(r.status, 2) << r.err;
   EXPECT_EQ(r.signal, 0);
   EXPECT_THAT(r.err, HasSubstr("voxvis: error: EGL: no EGL implementation found"));
   EXPECT_EQ(r.out, "");
+  r = run(with({"--method", "queries"}), no_egl);
+  EXPECT_EQ(r.status, 2) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("voxvis: error: --method: queries needs the EGL reference (EGL: no EGL"));
+  r = run(with({"--resolution", "64x36"}), no_egl);
+  EXPECT_EQ(r.status, 0) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("verifying with the CPU ray caster"));
+  EXPECT_THAT(r.err, HasSubstr("verifying at 64x36 by raycast on CPU ray caster"));
+  const auto fallback = lines(r.out);
+  ASSERT_EQ(fallback.size(), 4u);
+  r = run(with({"--resolution", "64x36", "--reference", "raycast", "-q"}));
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(r.err, "");
+  const auto cast = lines(r.out);
+  ASSERT_EQ(cast.size(), fallback.size());
+  for (std::size_t i = 0; i < cast.size(); ++i) EXPECT_EQ(cast[i]["visible"], fallback[i]["visible"]);
 }
 
 }  // namespace

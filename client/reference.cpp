@@ -1,0 +1,49 @@
+// reference.cpp — see reference.h.
+#include "reference.h"
+
+#include <algorithm>
+#include <thread>
+
+#include "voxvis/raycast.h"
+
+namespace voxvis::cli {
+
+bool parse_reference(const std::string& text, Reference* out, std::string* message) {
+  if (text == "auto") *out = Reference::Auto;
+  else if (text == "egl") *out = Reference::Egl;
+  else if (text == "raycast") *out = Reference::Raycast;
+  else {
+    *message = "unknown reference '" + text + "' (known: auto, egl, raycast)";
+    return false;
+  }
+  return true;
+}
+
+Reference resolve_reference(Reference reference, const render::ContextOptions& ctx) {
+  if (reference == Reference::Auto && (ctx.device >= 0 || ctx.platform != render::Platform::Auto))
+    return Reference::Egl;
+  return reference;
+}
+
+bool raycast_visible(const std::vector<ObjectDesc>& objects, const Camera& cam, int width, int height,
+                     std::vector<ObjectId>* out, render::VisibleStats* stats, std::string* error) {
+  raycast::ViewBasis basis;
+  if (!raycast::make_basis(cam, &basis)) {
+    *error = "camera: defines no frustum";
+    return false;
+  }
+  raycast::CastStats cs;
+  *out = raycast::visible_objects(objects, cam, raycast::pixel_centres(width, height), {}, &cs);
+  *stats = render::VisibleStats{};
+  stats->in_frustum = static_cast<std::uint32_t>(cs.in_frustum);
+  stats->upload_ms = cs.build_ms;
+  stats->draw_ms = cs.cast_ms;
+  return true;
+}
+
+std::string raycast_summary() {
+  const unsigned threads = std::max(1u, std::thread::hardware_concurrency());
+  return "CPU ray caster, " + std::to_string(threads) + (threads == 1 ? " thread" : " threads");
+}
+
+}  // namespace voxvis::cli

@@ -1,0 +1,39 @@
+// reference.h — where `voxvis report` and `voxvis verify` take the exactly
+// visible set of a frame from: the headless renderer (EGL, voxvis/render.h)
+// at W x H, or the CPU ray caster (voxvis/raycast.h) through the same pixel
+// centres where no EGL is available (docs/accuracy.md, docs/verify.md).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "voxvis/render.h"
+#include "voxvis/types.h"
+
+namespace voxvis::cli {
+
+enum class Reference {
+  Auto,     ///< EGL when a context starts, else the ray caster.
+  Egl,      ///< The headless renderer; no EGL is an error.
+  Raycast,  ///< The CPU ray caster; EGL is not needed for the reference.
+};
+
+/// "auto", "egl" or "raycast"; on error sets `message`.
+bool parse_reference(const std::string& text, Reference* out, std::string* message);
+
+/// Auto with an EGL device or platform named (not auto) is Egl: whoever
+/// names one wants EGL, and a typo must not fall back quietly.
+Reference resolve_reference(Reference reference, const render::ContextOptions& ctx);
+
+/// The ray caster's exactly visible set at width x height: the first hits of
+/// the rays through the pixel centres (every object of a tie), ascending.
+/// `stats` gets its costs in the renderer's terms: in_frustum, the objects
+/// that may be hit; upload_ms, culling and building the hierarchy; draw_ms,
+/// casting. False, with `error` set, for a camera that defines no frustum.
+bool raycast_visible(const std::vector<ObjectDesc>& objects, const Camera& cam, int width, int height,
+                     std::vector<ObjectId>* out, render::VisibleStats* stats, std::string* error);
+
+/// "CPU ray caster, N threads" for the report's and verify's header lines.
+std::string raycast_summary();
+
+}  // namespace voxvis::cli
