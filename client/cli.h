@@ -74,6 +74,7 @@ struct ReportArgs {
   std::string out = "report";          ///< Output directory.
   std::string resolution = "640x360";  ///< The exact reference's and the levels' pixels.
   std::string reference = "auto";      ///< auto | egl | raycast: who finds the exact set.
+  std::string cost_model;              ///< near-optimal's cost model file; empty: the cache directory's.
   std::int64_t frame_count = -1;       ///< The first N frames; -1: all.
   std::string egl_platform = "auto";
   int egl_device = -1;

@@ -168,6 +168,10 @@ int run(int argc, char** argv) {
                          "refinement levels need EGL either way")
       ->type_name("auto|egl|raycast")
       ->capture_default_str();
+  report_cmd->add_option("--cost-model", rep.cost_model,
+                         "near-optimal's model of the GPU: loaded from FILE, else measured and saved there "
+                         "(default: $XDG_CACHE_HOME/voxvis/cost-model.json, else ~/.cache/voxvis/)")
+      ->type_name("FILE");
   report_cmd->add_option("--frame-count", rep.frame_count, "Use the first N frames; -1: all")
       ->type_name("N")
       ->capture_default_str();

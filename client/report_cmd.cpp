@@ -4,6 +4,7 @@
 // report.json, report.md and tradeoff.png (docs/accuracy.md).
 #include <algorithm>
 #include <cerrno>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -25,6 +26,7 @@
 #include "reference.h"
 #include "report_model.h"
 #include "voxvis/format.h"
+#include "voxvis/raycast.h"
 #include "voxvis/refine.h"
 #include "voxvis/render.h"
 #include "voxvis/scene.h"
@@ -135,13 +137,14 @@ int run_report(const ReportArgs& args) {
     const glm::ivec3 g = desc.grid ? *desc.grid : Scene::auto_resolution(desc, base);
     configs = default_configs(g);
   }
-  bool has_levels = false;
+  bool has_levels = false, has_near_optimal = false;
   for (std::size_t i = 0; i < configs.size(); ++i) {
     render::Level l;
     if (!render::parse_level(configs[i].level, &l, &message))
       return report_message((args.configs.empty() ? std::string("default configuration") : args.configs) +
                             ": configs[" + std::to_string(i) + "].level: " + message);
     has_levels = has_levels || l.kind != render::LevelKind::None;
+    has_near_optimal = has_near_optimal || l.kind == render::LevelKind::NearOptimal;
   }
 
   // The frames.
@@ -187,6 +190,14 @@ int run_report(const ReportArgs& args) {
       std::fprintf(stderr, "voxvis: EGL: %s; refinement levels cannot run\n", egl_error.c_str());
     std::fprintf(stderr, "voxvis: exactly visible sets at %s\n", reference.c_str());
   }
+  if (renderer && has_near_optimal) {
+    // Measured (or loaded) now, outside every frame's time.
+    render::CostModel model;
+    std::string note;
+    const std::string path = args.cost_model.empty() ? render::default_cost_model_path() : args.cost_model;
+    if (!renderer->cost_model(path, &model, &note, &message)) return report_message("the cost model: " + message);
+    if (!args.quiet) std::fprintf(stderr, "voxvis: near-optimal: %s\n", note.c_str());
+  }
   std::unordered_map<ObjectId, std::size_t> slot;
   for (std::size_t i = 0; i < desc.objects.size(); ++i) slot[desc.objects[i].id] = i;
   auto apply = [&](std::vector<ObjectDesc>* objects, const FrameInput& f) {
@@ -197,6 +208,12 @@ int run_report(const ReportArgs& args) {
   };
   std::vector<std::vector<ObjectId>> exact(frames.size());
   std::uint64_t exact_total = 0;
+  // The baseline every occlusion culler has to beat: plain frustum culling
+  // of the same frames (each object's box against the six planes).
+  ReportRow frustum;
+  frustum.name = "frustum culling only";
+  std::vector<double> frustum_ms;
+  std::uint64_t frustum_total = 0;
   Progress progress(!args.quiet && ::isatty(STDERR_FILENO) != 0, frames.size() * (configs.size() + 1));
   std::size_t done = 0;
   {
@@ -212,6 +229,14 @@ int run_report(const ReportArgs& args) {
         return report(FormatError{args.frames, frames[k].line, "", message});
       }
       exact_total += exact[k].size();
+      const auto t0 = std::chrono::steady_clock::now();
+      const std::vector<ObjectId> in_frustum = raycast::frustum_objects(objects, frames[k].camera);
+      frustum_ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+      frustum_total += in_frustum.size();
+      std::vector<ObjectId> missed;
+      std::set_difference(exact[k].begin(), exact[k].end(), in_frustum.begin(), in_frustum.end(),
+                          std::back_inserter(missed));
+      frustum.misses += missed.size();
       progress.update(++done);
     }
   }
@@ -238,6 +263,7 @@ int run_report(const ReportArgs& args) {
       done += frames.size();
       continue;
     }
+    if (renderer) renderer->reset_refinement();  // Each configuration's levels start afresh.
     const ViewerId viewer = scene->add_viewer();
     Scratch scratch;
     FrameResult fr;
@@ -290,6 +316,15 @@ int run_report(const ReportArgs& args) {
     }
     rows.push_back(row);
   }
+  {  // Last, after the configurations (report.md sorts by time).
+    const Spread t = spread(frustum_ms);
+    frustum.frames = frustum_ms.size();
+    frustum.median_ms = frustum.engine_ms = t.median;
+    frustum.p99_ms = t.p99;
+    frustum.tightness =
+        exact_total > 0 ? static_cast<double>(frustum_total) / static_cast<double>(exact_total) : std::nan("");
+    rows.push_back(frustum);
+  }
   progress.finish();
   mark_pareto(&rows);
 
@@ -305,9 +340,13 @@ int run_report(const ReportArgs& args) {
     const ReportRow& r = rows[i];
     nlohmann::json e;
     e["name"] = r.name;
-    e["level"] = configs[i].level;
-    e["occlusion_buffer"] = configs[i].occlusion_buffer;
-    if (configs[i].grid) e["grid"] = {configs[i].grid->x, configs[i].grid->y, configs[i].grid->z};
+    if (i < configs.size()) {
+      e["level"] = configs[i].level;
+      e["occlusion_buffer"] = configs[i].occlusion_buffer;
+      if (configs[i].grid) e["grid"] = {configs[i].grid->x, configs[i].grid->y, configs[i].grid->z};
+    } else {
+      e["baseline"] = "frustum";  // The last row: plain frustum culling, no engine.
+    }
     if (!r.error.empty()) {
       e["error"] = r.error;
     } else {

@@ -106,22 +106,29 @@ class Report : public Cli {
  protected:
   /// The ray caster's exactly visible set of every frame of `frames` (the
   /// scene's moves applied), through the pixel centres of w x h.
-  std::vector<std::vector<ObjectId>> cast_by_hand(const std::string& scene, const std::string& frames, int w,
-                                                   int h) {
+  /// `pick` on every frame's objects (moves applied) and camera.
+  template <class Pick>
+  std::vector<std::vector<ObjectId>> by_hand(const std::string& scene, const std::string& frames, Pick pick) {
     SceneDesc desc;
     FormatError error;
     EXPECT_TRUE(parse_scene(slurp(path(scene)), scene, &desc, &error)) << error.str();
     std::unordered_map<ObjectId, std::size_t> slot;
     for (std::size_t i = 0; i < desc.objects.size(); ++i) slot[desc.objects[i].id] = i;
-    std::vector<std::vector<ObjectId>> exact;
+    std::vector<std::vector<ObjectId>> sets;
     int line = 0;
     for (const std::string& l : lines_of(slurp(path(frames)))) {
       FrameInput f;
       EXPECT_TRUE(parse_frame_line(l, frames, ++line, &f, &error)) << error.str();
       for (const Move& m : f.moves) desc.objects[slot.at(m.id)].center = m.center;
-      exact.push_back(raycast::visible_objects(desc.objects, f.camera, raycast::pixel_centres(w, h)));
+      sets.push_back(pick(desc.objects, f.camera));
     }
-    return exact;
+    return sets;
+  }
+  std::vector<std::vector<ObjectId>> cast_by_hand(const std::string& scene, const std::string& frames, int w,
+                                                   int h) {
+    return by_hand(scene, frames, [&](const std::vector<ObjectDesc>& objects, const Camera& cam) {
+      return raycast::visible_objects(objects, cam, raycast::pixel_centres(w, h));
+    });
   }
 };
 
@@ -137,8 +144,9 @@ TEST_F(Report, RowsAgreeWithReplayAndVerifyAndAFailedConfigurationLeavesTheOther
   EXPECT_EQ(r.status, 2) << r.err;  // One configuration failed.
   EXPECT_THAT(r.err, HasSubstr("configuration 'too big' could not run"));
   const nlohmann::json rep = nlohmann::json::parse(slurp(path("out/report.json")));
-  ASSERT_EQ(rep["rows"].size(), 4u);
+  ASSERT_EQ(rep["rows"].size(), 5u);  // And the frustum-culling baseline, last.
   EXPECT_TRUE(rep["rows"][3].contains("error"));
+  EXPECT_EQ(rep["rows"][4]["name"], "frustum culling only");
   EXPECT_EQ(slurp(path("out/tradeoff.png")).substr(1, 3), "PNG");
   EXPECT_THAT(slurp(path("out/report.md")), HasSubstr("| too big | could not run:"));
 
@@ -214,6 +222,41 @@ TEST_F(Report, TheRayCastersReferenceIsTheRayCasterRunByHand) {
         << configs[i].first;
     EXPECT_EQ(row["misses"].get<std::uint64_t>(), misses) << configs[i].first;
   }
+  // The baseline: plain frustum culling of the same frames, by hand.
+  std::uint64_t frustum_total = 0;
+  for (const auto& set : by_hand("s.json", "f.jsonl", raycast::frustum_objects)) frustum_total += set.size();
+  ASSERT_EQ(rep["rows"].size(), 3u);
+  const nlohmann::json& vfc = rep["rows"][2];
+  EXPECT_EQ(vfc["name"], "frustum culling only");
+  EXPECT_DOUBLE_EQ(vfc["tightness"].get<double>(),
+                   static_cast<double>(frustum_total) / static_cast<double>(exact_total));
+  EXPECT_EQ(vfc["misses"].get<std::uint64_t>(), 0u);
+  EXPECT_GT(vfc["tightness"].get<double>(), rep["rows"][1]["tightness"].get<double>())
+      << "the occlusion culler is no tighter than frustum culling";
+}
+
+TEST_F(Report, LevelsThatKeepStateStartAfreshForEachConfiguration) {
+  write_paper("s.json", "f.jsonl", 300, 30, 6);
+  spit(path("c.json"), R"({"configs": [
+    {"name": "ternary 1", "level": "ternary"}, {"name": "ternary 2", "level": "ternary"},
+    {"name": "near-optimal 1", "level": "near-optimal"}, {"name": "near-optimal 2", "level": "near-optimal"}]})");
+  Result r = run({"report", "--scene", path("s.json"), "--frames", path("f.jsonl"), "--configs", path("c.json"),
+                  "--out", path("out"), "--resolution", "96x54", "--cost-model", path("model.json")});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("near-optimal: cost model measured in"));
+  EXPECT_THAT(r.err, HasSubstr("saved to " + path("model.json")));
+  const nlohmann::json rep = nlohmann::json::parse(slurp(path("out/report.json")));
+  ASSERT_EQ(rep["rows"].size(), 5u);
+  for (std::size_t i : {0u, 2u}) {
+    EXPECT_EQ(rep["rows"][i]["tightness"], rep["rows"][i + 1]["tightness"]) << rep["rows"][i]["name"];
+    EXPECT_EQ(rep["rows"][i]["queries_per_frame"], rep["rows"][i + 1]["queries_per_frame"]) << rep["rows"][i]["name"];
+    EXPECT_EQ(rep["rows"][i]["misses"].get<int>(), 0);
+  }
+  // A second report loads the model.
+  r = run({"report", "--scene", path("s.json"), "--frames", path("f.jsonl"), "--configs", path("c.json"),
+           "--out", path("out2"), "--resolution", "96x54", "--cost-model", path("model.json")});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("near-optimal: cost model loaded from " + path("model.json")));
 }
 
 TEST_F(Report, WithoutEglTheRayCasterIsTheReferenceAndOnlyLevelsFail) {
@@ -235,7 +278,7 @@ TEST_F(Report, WithoutEglTheRayCasterIsTheReferenceAndOnlyLevelsFail) {
   EXPECT_THAT(r.err, HasSubstr("configuration 'queries' could not run: EGL: no EGL implementation found"));
   const nlohmann::json rep = nlohmann::json::parse(slurp(path("auto/report.json")));
   EXPECT_EQ(rep["reference_source"], "raycast");
-  ASSERT_EQ(rep["rows"].size(), 2u);
+  ASSERT_EQ(rep["rows"].size(), 3u);
   EXPECT_FALSE(rep["rows"][0].contains("error"));
   EXPECT_TRUE(rep["rows"][0]["tightness"].is_number());
   EXPECT_THAT(rep["rows"][1]["error"].get<std::string>(), HasSubstr("EGL: no EGL implementation found"));

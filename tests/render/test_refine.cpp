@@ -215,7 +215,9 @@ TEST(Refine, NearOptimalQueriesWhereTheModelSaysItPays) {
     EXPECT_EQ(st.kept_unqueried, 1u);
     // Nothing known of the first frame: every box the crowd's is walked at
     // once. Hidden since, a box's children wait for its answer.
-    if (frame > 0) EXPECT_LT(st.queries, 40u) << "frame " << frame;
+    if (frame > 0) {
+      EXPECT_LT(st.queries, 40u) << "frame " << frame;
+    }
   }
   // The triangle count prices drawing: at 1 triangle an object only boxes
   // of many objects are worth a query; at 100,000 every ball is too.
