@@ -295,6 +295,11 @@ int run_report(const ReportArgs& args) {
         }
         refine_ms = rs.draw_ms + rs.query_ms + rs.wait_ms;
         queries += rs.queries;
+        row.draw_calls += rs.draw_calls;
+        row.pixels += static_cast<double>(rs.pixels);
+        row.draw_ms += rs.draw_ms;
+        row.query_ms += rs.query_ms;
+        row.wait_ms += rs.wait_ms;
       }
       engine_ms.push_back(fr.stats.time_us / 1000.0);
       total_ms.push_back(fr.stats.time_us / 1000.0 + refine_ms);
@@ -312,7 +317,9 @@ int run_report(const ReportArgs& args) {
       row.engine_ms = e.median;
       row.tightness =
           exact_total > 0 ? static_cast<double>(out_total) / static_cast<double>(exact_total) : std::nan("");
-      row.queries = static_cast<double>(queries) / static_cast<double>(std::max<std::size_t>(row.frames, 1));
+      const double per = 1.0 / static_cast<double>(std::max<std::size_t>(row.frames, 1));
+      row.queries = static_cast<double>(queries) * per;
+      for (double* v : {&row.draw_calls, &row.pixels, &row.draw_ms, &row.query_ms, &row.wait_ms}) *v *= per;
     }
     rows.push_back(row);
   }
@@ -358,6 +365,9 @@ int run_report(const ReportArgs& args) {
       e["misses"] = r.misses;
       e["may_miss"] = r.may_miss;
       e["queries_per_frame"] = r.queries;
+      e["refinement"] = {{"draw_calls_per_frame", r.draw_calls}, {"samples_passed_per_frame", r.pixels},
+                         {"draw_ms_mean", r.draw_ms},           {"query_ms_mean", r.query_ms},
+                         {"wait_ms_mean", r.wait_ms}};
       e["pareto"] = r.pareto;
     }
     j["rows"].push_back(e);

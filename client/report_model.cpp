@@ -128,7 +128,8 @@ std::string report_markdown(const std::vector<ReportRow>& rows, const std::strin
   for (const ReportRow* r : failed) s += "| " + r->name + " | could not run: " + r->error + " | | | | | | |\n";
   s += "\nTightness and misses against the exactly visible set at " + reference +
        "; time per frame is the engine's plus the refinement's; * marks the Pareto-optimal rows among those "
-       "with no miss (no other such row is both faster and tighter).\n";
+       "with no miss (no other such row is both faster and tighter). \"frustum culling only\" is every object's "
+       "box against the frustum on the same frames: the baseline an occlusion culler has to beat.\n";
   return s;
 }
 

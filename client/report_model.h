@@ -41,6 +41,8 @@ struct ReportRow {
   double tightness = 0.0;                ///< Total output size over total exactly visible.
   std::uint64_t misses = 0;              ///< Object-frames exactly visible but not in the output.
   double queries = 0.0;                  ///< Per frame.
+  /// The refinement level's costs, means per frame (render::RefineStats).
+  double draw_calls = 0.0, pixels = 0.0, draw_ms = 0.0, query_ms = 0.0, wait_ms = 0.0;
   bool may_miss = false;                 ///< The level may drop visible objects (adaptive).
   bool pareto = false;
 };

@@ -40,7 +40,7 @@ struct Instance {
 static_assert(sizeof(Instance) == 32);
 
 /// The camera's frame: f along the view, right and up across it, as the CPU
-/// ray caster builds it (tests/support/raycast.h).
+/// ray caster builds it (voxvis/raycast.h).
 struct Basis {
   glm::dvec3 eye, f, right, up;
   double tanx = 1.0, tany = 1.0, near = 0.05, far = 1000.0;

@@ -176,6 +176,12 @@ TEST_F(Report, RowsAgreeWithReplayAndVerifyAndAFailedConfigurationLeavesTheOther
   EXPECT_LT(q["tightness"].get<double>(), rep["rows"][1]["tightness"].get<double>());
   EXPECT_GE(q["tightness"].get<double>(), 1.0);
   EXPECT_GT(q["queries_per_frame"].get<double>(), 0.0);
+  // Its costs: a draw call per query and the depth pass; time split.
+  EXPECT_GE(q["refinement"]["draw_calls_per_frame"].get<double>(), q["queries_per_frame"].get<double>() + 1.0);
+  EXPECT_GT(q["refinement"]["samples_passed_per_frame"].get<double>(), 0.0);
+  EXPECT_GT(q["refinement"]["draw_ms_mean"].get<double>(), 0.0);
+  EXPECT_GT(q["refinement"]["wait_ms_mean"].get<double>(), 0.0);
+  EXPECT_EQ(off["refinement"]["draw_calls_per_frame"].get<double>(), 0.0);
 }
 
 TEST_F(Report, TheRayCastersReferenceIsTheRayCasterRunByHand) {

@@ -5,7 +5,7 @@
 //
 // Definition of "visible" used here (docs/verify.md): an object is visible at
 // W x H when it is the first object hit by the ray through the centre of some
-// pixel, with the conventions of the CPU ray caster of the tests: objects are
+// pixel, with the conventions of the CPU ray caster (voxvis/raycast.h): objects are
 // solids (closed balls and axis-aligned boxes, drawn exactly, not tessellated),
 // each ray's hits are clipped to [near, far] (an object that contains the eye
 // is hit at depth `near`), pixel (i, j) samples the image point
