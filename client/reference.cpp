@@ -25,6 +25,26 @@ Reference resolve_reference(Reference reference, const render::ContextOptions& c
   return reference;
 }
 
+bool parse_reference_flags(const std::string& reference, const std::string& egl_platform, int egl_device,
+                           Reference* out, render::ContextOptions* ctx, FormatError* error) {
+  std::string message;
+  if (!parse_reference(reference, out, &message)) {
+    *error = FormatError{"", 0, "--reference", message};
+    return false;
+  }
+  if (!render::parse_platform(egl_platform, &ctx->platform, &message)) {
+    *error = FormatError{"", 0, "--egl-platform", message};
+    return false;
+  }
+  if (egl_device < -1) {
+    *error = FormatError{"", 0, "--egl-device", "must be >= 0"};
+    return false;
+  }
+  ctx->device = egl_device;
+  *out = resolve_reference(*out, *ctx);
+  return true;
+}
+
 bool raycast_visible(const std::vector<ObjectDesc>& objects, const Camera& cam, int width, int height,
                      std::vector<ObjectId>* out, render::VisibleStats* stats, std::string* error) {
   raycast::ViewBasis basis;

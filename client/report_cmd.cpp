@@ -108,14 +108,10 @@ int run_report(const ReportArgs& args) {
   int w = 0, h = 0;
   if (!render::parse_resolution(args.resolution, &w, &h, &message)) return report(FormatError{"", 0, "--resolution", message});
   Reference reference_kind = Reference::Auto;
-  if (!parse_reference(args.reference, &reference_kind, &message))
-    return report(FormatError{"", 0, "--reference", message});
   render::ContextOptions ctx;
-  if (!render::parse_platform(args.egl_platform, &ctx.platform, &message))
-    return report(FormatError{"", 0, "--egl-platform", message});
-  if (args.egl_device < -1) return report(FormatError{"", 0, "--egl-device", "must be >= 0"});
-  ctx.device = args.egl_device;
-  reference_kind = resolve_reference(reference_kind, ctx);
+  FormatError flag_error;
+  if (!parse_reference_flags(args.reference, args.egl_platform, args.egl_device, &reference_kind, &ctx, &flag_error))
+    return report(flag_error);
   if (args.frame_count < -1 || args.frame_count == 0)
     return report(FormatError{"", 0, "--frame-count", "must be >= 1 (or -1: all)"});
 

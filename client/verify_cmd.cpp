@@ -127,16 +127,12 @@ int run_verify(const VerifyArgs& args) {
   render::Method method;
   if (!render::parse_method(args.method, &method, &message)) return report(FormatError{"", 0, "--method", message});
   Reference reference_kind = Reference::Auto;
-  if (!parse_reference(args.reference, &reference_kind, &message))
-    return report(FormatError{"", 0, "--reference", message});
+  render::ContextOptions ctx;
+  FormatError flag_error;
+  if (!parse_reference_flags(args.reference, args.egl_platform, args.egl_device, &reference_kind, &ctx, &flag_error))
+    return report(flag_error);
   if (reference_kind == Reference::Raycast && method == render::Method::Queries)
     return report(FormatError{"", 0, "--method", "queries needs the EGL reference (not --reference raycast)"});
-  render::ContextOptions ctx;
-  if (!render::parse_platform(args.egl_platform, &ctx.platform, &message))
-    return report(FormatError{"", 0, "--egl-platform", message});
-  if (args.egl_device < -1) return report(FormatError{"", 0, "--egl-device", "must be >= 0"});
-  ctx.device = args.egl_device;
-  reference_kind = resolve_reference(reference_kind, ctx);
   if (args.first_frame < 0) return report(FormatError{"", 0, "--first-frame", "must be >= 0"});
   if (args.frame_count < -1) return report(FormatError{"", 0, "--frame-count", "must be >= 0"});
 

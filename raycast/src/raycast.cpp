@@ -243,19 +243,27 @@ void leaf_box(const ObjectDesc& obj, const Vec3& eye, double* lo, double* hi) {
   }
 }
 
+/// A plane of the frustum: inside is n·(p - eye) <= w.
+struct Plane {
+  Vec3 n;
+  double w;
+};
+
+/// The frustum's six planes: right, left, top, bottom, near, far.
+std::array<Plane, 6> frustum_planes(const ViewBasis& b) {
+  return {{{b.right - b.tanx * b.f, 0.0},
+           {-b.right - b.tanx * b.f, 0.0},
+           {b.up - b.tany * b.f, 0.0},
+           {-b.up - b.tany * b.f, 0.0},
+           {-b.f, -b.near},
+           {b.f, b.far}}};
+}
+
 /// Whether the box [lo, hi] lies wholly outside the frustum of `b`, by far
 /// more than any rounding of the rays (whose directions stray from the
 /// frustum's planes by about 2^-53 * (1 + tanx + tany)^2 relative).
 bool outside_frustum(const ViewBasis& b, const Vec3& lo, const Vec3& hi) {
-  struct Plane {
-    Vec3 n;
-    double w;  // inside: n·(p - eye) <= w
-  };
-  const Plane planes[6] = {
-      {b.right - b.tanx * b.f, 0.0}, {-b.right - b.tanx * b.f, 0.0},
-      {b.up - b.tany * b.f, 0.0},    {-b.up - b.tany * b.f, 0.0},
-      {-b.f, -b.near},               {b.f, b.far},
-  };
+  const std::array<Plane, 6> planes = frustum_planes(b);
   const double lens = (1.0 + b.tanx + b.tany) * (1.0 + b.tanx + b.tany);
   for (const Plane& p : planes) {
     double mn = 0.0;
@@ -726,15 +734,7 @@ bool project(const Camera& cam, const Vec3& p, double* x, double* y) {
 std::vector<ObjectId> frustum_objects(const std::vector<ObjectDesc>& objects, const Camera& cam) {
   ViewBasis b;
   if (!make_basis(cam, &b)) return {};
-  struct Plane {
-    Vec3 n;
-    double w;  // inside: n·(p - eye) <= w
-  };
-  const Plane planes[6] = {
-      {b.right - b.tanx * b.f, 0.0}, {-b.right - b.tanx * b.f, 0.0},
-      {b.up - b.tany * b.f, 0.0},    {-b.up - b.tany * b.f, 0.0},
-      {-b.f, -b.near},               {b.f, b.far},
-  };
+  const std::array<Plane, 6> planes = frustum_planes(b);
   std::vector<ObjectId> ids;
   for (const ObjectDesc& obj : objects) {
     Vec3 lo;

@@ -148,6 +148,45 @@ std::int32_t build_hierarchy(std::vector<Node>& nodes, std::vector<std::uint32_t
 }
 
 
+std::vector<std::size_t> node_instances(Renderer::Impl& m, const Basis& b, const std::vector<Node>& nodes) {
+  std::vector<std::size_t> at(nodes.size());
+  for (std::size_t k = 0; k < nodes.size(); ++k) {
+    at[k] = m.instances.size();
+    m.instances.push_back(query_box(b, nodes[k].lo, nodes[k].hi));
+  }
+  return at;
+}
+
+bool pvs_depth_pass(Renderer::Impl& m, const Basis& b, int width, int height, std::size_t n, RefineStats* stats,
+                    std::string* error) {
+  const auto t0 = Clock::now();
+  m.upload();
+  m.depth_pass(b, width, height, static_cast<std::ptrdiff_t>(n));
+  glFinish();
+  stats->draw_ms += ms_since(t0);
+  ++stats->draw_calls;
+  return m.gl_ok("the depth pass", error);
+}
+
+void query_round(Renderer::Impl& m, const std::vector<std::size_t>& probes, std::vector<GLuint>* passed,
+                 RefineStats* stats) {
+  auto t = Clock::now();
+  m.begin_probes(probes.size());
+  for (std::size_t q = 0; q < probes.size(); ++q) m.probe(GL_SAMPLES_PASSED, q, probes[q]);
+  glFlush();
+  stats->query_ms += ms_since(t);
+  t = Clock::now();
+  passed->assign(probes.size(), 0);
+  for (std::size_t q = 0; q < probes.size(); ++q) {
+    glGetQueryObjectuiv(m.queries[q], GL_QUERY_RESULT, &(*passed)[q]);
+    stats->pixels += (*passed)[q];
+  }
+  stats->wait_ms += ms_since(t);
+  stats->queries += static_cast<std::uint32_t>(probes.size());
+  stats->draw_calls += static_cast<std::uint32_t>(probes.size());
+  ++stats->levels;
+}
+
 bool screen_rect(const Basis& b, int width, int height, const glm::dvec3& lo, const glm::dvec3& hi, int* x0, int* y0,
                  int* x1, int* y1, float* znear) {
   double zmin = std::numeric_limits<double>::infinity();
@@ -328,43 +367,12 @@ bool Renderer::refine(const Level& level, const std::vector<ObjectDesc>& objects
     build_hierarchy(nodes, order, lo, hi, 0, static_cast<std::uint32_t>(n));
   }
   if (level.kind == LevelKind::LazyGrid) return lazy_grid(m, b, width, height, nodes, order, lo, hi, out, stats, error);
-  if (level.kind == LevelKind::Hierarchical && n > 0) {
-    node_instance.resize(nodes.size());
-    for (std::size_t k = 0; k < nodes.size(); ++k) {
-      node_instance[k] = m.instances.size();
-      m.instances.push_back(detail::query_box(b, nodes[k].lo, nodes[k].hi));
-    }
-  }
+  if (level.kind == LevelKind::Hierarchical && n > 0) node_instance = detail::node_instances(m, b, nodes);
 
-  // The depth of the PVS's objects.
-  auto t0 = Clock::now();
-  m.upload();
-  m.depth_pass(b, width, height, static_cast<std::ptrdiff_t>(n));
-  glFinish();
-  stats->draw_ms = ms_since(t0);
-  stats->draw_calls = 1;
-  if (!m.gl_ok("the depth pass", error)) return false;
-
-  // One round of probes: every instance of `probes` in a query, all issued
-  // before any is read; `passed` gets their sample counts.
+  // The depth of the PVS's objects, then rounds of queries against it.
+  if (!detail::pvs_depth_pass(m, b, width, height, n, stats, error)) return false;
   std::vector<GLuint> passed;
-  auto round = [&](const std::vector<std::size_t>& probes) {
-    auto t = Clock::now();
-    m.begin_probes(probes.size());
-    for (std::size_t q = 0; q < probes.size(); ++q) m.probe(GL_SAMPLES_PASSED, q, probes[q]);
-    glFlush();
-    stats->query_ms += ms_since(t);
-    t = Clock::now();
-    passed.assign(probes.size(), 0);
-    for (std::size_t q = 0; q < probes.size(); ++q) {
-      glGetQueryObjectuiv(m.queries[q], GL_QUERY_RESULT, &passed[q]);
-      stats->pixels += passed[q];
-    }
-    stats->wait_ms += ms_since(t);
-    stats->queries += static_cast<std::uint32_t>(probes.size());
-    stats->draw_calls += static_cast<std::uint32_t>(probes.size());
-    ++stats->levels;
-  };
+  auto round = [&](const std::vector<std::size_t>& probes) { detail::query_round(m, probes, &passed, stats); };
 
   if (level.kind == LevelKind::Queries || level.kind == LevelKind::Adaptive) {
     std::vector<std::size_t> probes(n);

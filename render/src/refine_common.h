@@ -50,6 +50,21 @@ std::int32_t build_hierarchy(std::vector<Node>& nodes, std::vector<std::uint32_t
 bool screen_rect(const Basis& b, int width, int height, const glm::dvec3& lo, const glm::dvec3& hi, int* x0, int* y0,
                  int* x1, int* y1, float* znear);
 
+/// Appends a query box (query_box) per node to m.instances; returns each
+/// node's instance number.
+std::vector<std::size_t> node_instances(Renderer::Impl& m, const Basis& b, const std::vector<Node>& nodes);
+
+/// Uploads m.instances and draws the first n (the PVS's objects) into the
+/// depth and id buffers, waiting for it: stats' draw_ms and draw_calls.
+bool pvs_depth_pass(Renderer::Impl& m, const Basis& b, int width, int height, std::size_t n, RefineStats* stats,
+                    std::string* error);
+
+/// One round of queries: instance probes[q] drawn in query q against the
+/// depth buffer, all issued before any is read; `passed` gets their sample
+/// counts, `stats` the queries, draw calls, samples, a round and the times.
+void query_round(Renderer::Impl& m, const std::vector<std::size_t>& probes, std::vector<GLuint>* passed,
+                 RefineStats* stats);
+
 /// The levels in their own files.
 bool refine_ternary(Renderer::Impl& m, const Basis& b, int width, int height, const std::vector<ObjectDesc>& objects,
                     const std::vector<ObjectId>& pvs, std::vector<ObjectId>* out, RefineStats* stats,

@@ -94,20 +94,8 @@ bool refine_near_optimal(Renderer::Impl& m, const Level& level, const Basis& b, 
   std::vector<std::uint32_t> order(n);
   for (std::uint32_t i = 0; i < n; ++i) order[i] = i;
   build_hierarchy(nodes, order, lo, hi, 0, static_cast<std::uint32_t>(n));
-  std::vector<std::size_t> node_instance(nodes.size());
-  for (std::size_t k = 0; k < nodes.size(); ++k) {
-    node_instance[k] = m.instances.size();
-    m.instances.push_back(query_box(b, nodes[k].lo, nodes[k].hi));
-  }
-
-  // The depth of the PVS's objects.
-  auto t0 = Clock::now();
-  m.upload();
-  m.depth_pass(b, width, height, static_cast<std::ptrdiff_t>(n));
-  glFinish();
-  stats->draw_ms = ms_since(t0);
-  stats->draw_calls = 1;
-  if (!m.gl_ok("the depth pass", error)) return false;
+  const std::vector<std::size_t> node_instance = node_instances(m, b, nodes);
+  if (!pvs_depth_pass(m, b, width, height, n, stats, error)) return false;
 
   // The model's estimates, objects first (front to back for c_scr).
   const double wh = static_cast<double>(width) * height;
@@ -231,6 +219,7 @@ bool refine_near_optimal(Renderer::Impl& m, const Level& level, const Basis& b, 
   std::vector<std::int64_t> probes, frontier = {0};
   std::vector<char> held;  // Per probe: its children wait for its answer.
   std::vector<GLuint> passed;
+  std::vector<std::size_t> instances;  // The probes' instance numbers.
   std::function<void(std::int64_t)> visit = [&](std::int64_t item) {
     const Estimate& e = estimate(item);
     if (e.outside) {
@@ -255,26 +244,13 @@ bool refine_near_optimal(Renderer::Impl& m, const Level& level, const Basis& b, 
     for (std::int64_t item : frontier) visit(item);
     frontier.clear();
     if (probes.empty()) break;
-    auto t = Clock::now();
-    m.begin_probes(probes.size());
-    for (std::size_t q = 0; q < probes.size(); ++q) {
-      const std::int64_t item = probes[q];
-      m.probe(GL_SAMPLES_PASSED, q, item >= 0 ? node_instance[static_cast<std::size_t>(item)]
-                                              : static_cast<std::size_t>(-1 - item));
-    }
-    glFlush();
-    stats->query_ms += ms_since(t);
-    t = Clock::now();
-    passed.assign(probes.size(), 0);
-    for (std::size_t q = 0; q < probes.size(); ++q) {
-      glGetQueryObjectuiv(m.queries[q], GL_QUERY_RESULT, &passed[q]);
-      stats->pixels += passed[q];
+    instances.resize(probes.size());
+    for (std::size_t q = 0; q < probes.size(); ++q)
+      instances[q] = probes[q] >= 0 ? node_instance[static_cast<std::size_t>(probes[q])]
+                                    : static_cast<std::size_t>(-1 - probes[q]);
+    query_round(m, instances, &passed, stats);
+    for (std::size_t q = 0; q < probes.size(); ++q)
       if (passed[q] == 0) drop(probes[q]);
-    }
-    stats->wait_ms += ms_since(t);
-    stats->queries += static_cast<std::uint32_t>(probes.size());
-    stats->draw_calls += static_cast<std::uint32_t>(probes.size());
-    ++stats->levels;
     for (std::size_t q = 0; q < probes.size(); ++q) {
       if (passed[q] == 0 || !held[q]) continue;
       for (std::int64_t c : children(probes[q])) frontier.push_back(c);

@@ -335,6 +335,42 @@ TEST(Refine, TheHierarchySkipsTheObjectsOfHiddenBoxes) {
   EXPECT_LE(st_lazy.queries, 16u) << "cells read back";
 }
 
+TEST(Refine, EmptyAndDegenerateInputs) {
+  std::string error;
+  auto r = Renderer::create(render::ContextOptions{}, &error);
+  ASSERT_TRUE(r) << error;
+  render::CostModel model;
+  model.query_setup_us = 1.0;
+  model.render_setup_us = 10.0;
+  r->set_cost_model(model);
+  const Camera cam = camera_along(Vec3(0.0), Vec3(0, 0, -1), 60.0, 1.0);
+  // 30 balls at one point (every split of the ternary tree puts them all on
+  // one side) and a ball behind the eye.
+  std::vector<ObjectDesc> objects;
+  std::vector<ObjectId> pvs;
+  for (int i = 0; i < 30; ++i) {
+    objects.push_back(sphere(static_cast<ObjectId>(i + 1), Vec3(1.0, 0.5, -8.0), 0.5));
+    pvs.push_back(static_cast<ObjectId>(i + 1));
+  }
+  objects.push_back(sphere(31, Vec3(0.0, 0.0, 8.0), 0.5));
+  pvs.push_back(31);
+  const std::vector<ObjectId> all_at_one_point(pvs.begin(), pvs.end() - 1);
+  for (const char* name : {"none", "queries", "hierarchical", "lazy-grid", "ternary", "near-optimal", "adaptive:4"}) {
+    std::vector<ObjectId> out = {99};
+    RefineStats st;
+    // An empty PVS stays empty.
+    ASSERT_TRUE(r->refine(level(name), objects, cam, 32, 32, {}, &out, &st, &error)) << name << ": " << error;
+    EXPECT_TRUE(out.empty()) << name;
+    // Tied objects all show (the depth test passes on equal depths); the
+    // one behind the eye goes with every level but none.
+    r->reset_refinement();
+    for (int frame = 0; frame < 3; ++frame) {
+      ASSERT_TRUE(r->refine(level(name), objects, cam, 32, 32, pvs, &out, &st, &error)) << name << ": " << error;
+      EXPECT_EQ(out, std::string(name) == "none" ? pvs : all_at_one_point) << name << " frame " << frame;
+    }
+  }
+}
+
 TEST(Refine, BadLevelsAndIdsAreErrors) {
   Level l;
   std::string message;
