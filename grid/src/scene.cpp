@@ -758,22 +758,52 @@ glm::ivec3 Scene::auto_resolution(const SceneDesc& desc, const SceneOptions& opt
   return r;
 }
 
-Status Scene::create(const SceneDesc& desc, const SceneOptions& options, std::unique_ptr<Scene>* out) {
+namespace {
+
+/// Polls a BuildControl every 2^16 steps of work and keeps the count.
+class BuildMeter {
+ public:
+  explicit BuildMeter(const BuildControl* c) : c_(c) {}
+  /// Counts n steps; false once the caller cancelled.
+  bool tick(std::uint64_t n = 1) {
+    steps_ += n;
+    if (steps_ < next_) return true;
+    next_ = steps_ + (std::uint64_t{1} << 16);
+    if (c_ && c_->cancelled && c_->cancelled()) cancelled_ = true;
+    return !cancelled_;
+  }
+  bool cancelled() const { return cancelled_; }
+  std::uint64_t steps() const { return steps_; }
+  std::uint64_t max_bytes() const { return c_ ? c_->max_bytes : 0; }
+
+ private:
+  const BuildControl* c_;
+  std::uint64_t steps_ = 0, next_ = 0;
+  bool cancelled_ = false;
+};
+
+std::string mib_text(std::uint64_t bytes) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.1f MiB", static_cast<double>(bytes) / (1024.0 * 1024.0));
+  return buf;
+}
+
+Status build_cancelled() { return Status::Cancelled("scene build cancelled"); }
+
+/// Validates `desc`, chooses the grid and sets up the objects of `s`: every
+/// part of a scene but its grid layers.
+Status prepare(const SceneDesc& desc, const SceneOptions& options, Scene::Impl& s) {
   if (Status st = validate_desc(desc, options); !st) return st;
-  auto impl = std::make_unique<Impl>();
-  Impl& s = *impl;
   s.options = options;
-  s.res = desc.grid ? *desc.grid : auto_resolution(desc, options);
+  s.res = desc.grid ? *desc.grid : Scene::auto_resolution(desc, options);
   if (!desc.grid && std::int64_t{s.res.x} * s.res.y * s.res.z > options.max_voxels)
-    return Status::Error("grid", "automatic resolution exceeds max_voxels");
+    return Status::Exhausted("grid", "automatic resolution exceeds max_voxels");
   s.spec.res = s.res;
   s.spec.bounds_min = desc.bounds_min;
   s.spec.bounds_max = desc.bounds_max;
   s.spec.voxel_size = (desc.bounds_max - desc.bounds_min) / Vec3(s.res);
   s.inv_vs = 1.0 / s.spec.voxel_size;
   s.slop_bounds = std::fmax(max_abs(desc.bounds_min), max_abs(desc.bounds_max));
-  const std::size_t nvox = static_cast<std::size_t>(s.spec.voxel_count());
-
   s.objs.reserve(desc.objects.size());
   s.slot_of.reserve(desc.objects.size());
   for (const ObjectDesc& d : desc.objects) {
@@ -790,47 +820,112 @@ Status Scene::create(const SceneDesc& desc, const SceneOptions& options, std::un
     s.objs.push_back(o);
     if (o.dynamic) ++s.dynamic_count;
   }
+  return Status::Ok();
+}
+
+/// Counts the static id-list entries (pass 0 of the build) and what the
+/// scene will cost; with `fill`, also writes the per-voxel counts.
+Status count_cost(Scene::Impl& s, BuildMeter& meter, SceneCost* cost, bool fill) {
+  const auto nvox = static_cast<std::uint64_t>(s.spec.voxel_count());
+  std::uint64_t total = 0;
+  for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
+    const Obj& o = s.objs[slot];
+    if (o.dynamic) continue;
+    const double sl = s.slop(max_abs(o.center) + o.radius + max_abs(o.half));
+    const VoxBox vb = s.touch_range(o.box_lo(), o.box_hi(), sl);
+    for (int z = vb.lo.z; z <= vb.hi.z; ++z)
+      for (int y = vb.lo.y; y <= vb.hi.y; ++y) {
+        if (!meter.tick(static_cast<std::uint64_t>(vb.hi.x - vb.lo.x + 1))) return build_cancelled();
+        for (int x = vb.lo.x; x <= vb.hi.x; ++x) {
+          if (!s.touches(o, o.center, x, y, z)) continue;
+          ++total;
+          if (fill) {
+            const auto i = static_cast<std::size_t>(s.index(x, y, z));
+            ++s.static_offsets[i + 1];
+            s.vflags[i] |= Scene::Impl::kStaticIds;
+          }
+        }
+      }
+  }
+  const std::uint64_t bricks = s.dynamic_count > 0 ? (nvox + 63) / 64 : 0;
+  cost->res = s.res;
+  cost->id_entries = total;
+  // flags (1) and CSR offsets (4) per voxel, the opaque boxes' owners (4)
+  // with the buffer on; 4 bytes an entry; a brick's list head, seen time
+  // and mask; each object's state and index entry.
+  cost->bytes = nvox * (1 + 4 + (s.options.occlusion_buffer > 0 ? 4 : 0)) + 4 * total + bricks * 48 +
+                s.objs.size() * (sizeof(Obj) + 48) + (1u << 16);
+  cost->scratch_bytes = nvox + 8 * s.objs.size() + 8 * bricks;
+  cost->work = meter.steps() + nvox;
+  if (meter.max_bytes() > 0 && cost->bytes > meter.max_bytes())
+    return Status::Exhausted("memory", "the scene needs about " + mib_text(cost->bytes) + " (" +
+                                           std::to_string(total) + " id-list entries at grid " +
+                                           std::to_string(s.res.x) + "x" + std::to_string(s.res.y) + "x" +
+                                           std::to_string(s.res.z) + "), over the limit of " +
+                                           mib_text(meter.max_bytes()));
+  if (total > std::numeric_limits<std::uint32_t>::max())
+    return Status::Exhausted("grid", "static objects touch more than 2^32 voxels; choose a coarser grid");
+  return Status::Ok();
+}
+
+}  // namespace
+
+Status Scene::estimate(const SceneDesc& desc, const SceneOptions& options, SceneCost* out,
+                       const BuildControl* control) {
+  Impl s;
+  if (Status st = prepare(desc, options, s); !st) return st;
+  BuildMeter meter(control);
+  SceneCost cost;
+  if (Status st = count_cost(s, meter, &cost, false); !st) return st;
+  *out = cost;
+  return Status::Ok();
+}
+
+Status Scene::create(const SceneDesc& desc, const SceneOptions& options, std::unique_ptr<Scene>* out,
+                     const BuildControl* control) {
+  auto impl = std::make_unique<Impl>();
+  Impl& s = *impl;
+  if (Status st = prepare(desc, options, s); !st) return st;
+  BuildMeter meter(control);
+  {
+    // Refused before the grid's layers are allocated.
+    SceneCost cost;
+    if (Status st = count_cost(s, meter, &cost, false); !st) return st;
+  }
+  const std::size_t nvox = static_cast<std::size_t>(s.spec.voxel_count());
 
   // Static layer: count, then fill (CSR), and the opaque bits.
   s.vflags.assign(nvox, 0);
   s.static_offsets.assign(nvox + 1, 0);
-  std::uint64_t total = 0;
-  for (int pass = 0; pass < 2; ++pass) {
-    for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
-      const Obj& o = s.objs[slot];
-      if (o.dynamic) continue;
-      const double sl = s.slop(max_abs(o.center) + o.radius + max_abs(o.half));
-      const VoxBox vb = s.touch_range(o.box_lo(), o.box_hi(), sl);
-      for (int z = vb.lo.z; z <= vb.hi.z; ++z)
-        for (int y = vb.lo.y; y <= vb.hi.y; ++y)
-          for (int x = vb.lo.x; x <= vb.hi.x; ++x) {
-            if (!s.touches(o, o.center, x, y, z)) continue;
-            const auto i = static_cast<std::size_t>(s.index(x, y, z));
-            if (pass == 0) {
-              ++s.static_offsets[i + 1];
-              ++total;
-              s.vflags[i] |= Impl::kStaticIds;
-            } else {
-              s.static_ids[s.static_offsets[i]++] = slot;
-            }
-          }
-      if (pass == 0 && !s.box_inside_grid(o.box_lo(), o.box_hi()))
-        s.list_add(s.outside_objs, s.objs[slot].outside_pos, slot);
-    }
-    if (pass == 0) {
-      if (total > std::numeric_limits<std::uint32_t>::max())
-        return Status::Error("grid", "static objects touch more than 2^32 voxels; choose a coarser grid");
-      for (std::size_t i = 0; i < nvox; ++i) s.static_offsets[i + 1] += s.static_offsets[i];
-      s.static_ids.resize(static_cast<std::size_t>(total));
-    } else {
-      // The fill advanced each start to the next voxel's start; shift back.
-      for (std::size_t i = nvox; i > 0; --i) s.static_offsets[i] = s.static_offsets[i - 1];
-      s.static_offsets[0] = 0;
-    }
+  {
+    SceneCost cost;
+    if (Status st = count_cost(s, meter, &cost, true); !st) return st;
+    for (std::size_t i = 0; i < nvox; ++i) s.static_offsets[i + 1] += s.static_offsets[i];
+    s.static_ids.resize(static_cast<std::size_t>(cost.id_entries));
   }
+  for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
+    const Obj& o = s.objs[slot];
+    if (o.dynamic) continue;
+    const double sl = s.slop(max_abs(o.center) + o.radius + max_abs(o.half));
+    const VoxBox vb = s.touch_range(o.box_lo(), o.box_hi(), sl);
+    for (int z = vb.lo.z; z <= vb.hi.z; ++z)
+      for (int y = vb.lo.y; y <= vb.hi.y; ++y) {
+        if (!meter.tick(static_cast<std::uint64_t>(vb.hi.x - vb.lo.x + 1))) return build_cancelled();
+        for (int x = vb.lo.x; x <= vb.hi.x; ++x) {
+          if (!s.touches(o, o.center, x, y, z)) continue;
+          const auto i = static_cast<std::size_t>(s.index(x, y, z));
+          s.static_ids[s.static_offsets[i]++] = slot;
+        }
+      }
+    if (!s.box_inside_grid(o.box_lo(), o.box_hi())) s.list_add(s.outside_objs, s.objs[slot].outside_pos, slot);
+  }
+  // The fill advanced each start to the next voxel's start; shift back.
+  for (std::size_t i = nvox; i > 0; --i) s.static_offsets[i] = s.static_offsets[i - 1];
+  s.static_offsets[0] = 0;
   // Static cover, once: from every static object touching the voxel.
   for (int z = 0; z < s.res.z; ++z)
-    for (int y = 0; y < s.res.y; ++y)
+    for (int y = 0; y < s.res.y; ++y) {
+      if (!meter.tick(static_cast<std::uint64_t>(s.res.x))) return build_cancelled();
       for (int x = 0; x < s.res.x; ++x) {
         const auto i = static_cast<std::size_t>(s.index(x, y, z));
         if ((s.vflags[i] & Impl::kStaticIds) &&
@@ -838,6 +933,7 @@ Status Scene::create(const SceneDesc& desc, const SceneOptions& options, std::un
                            s.static_offsets[i + 1] - s.static_offsets[i], x, y, z))
           s.vflags[i] |= Impl::kStaticOpaque;
       }
+    }
   if (s.options.occlusion_buffer > 0)
     detail::cover_with_boxes(s.res, s.vflags, Impl::kStaticOpaque, kOpaqueBoxSide, &s.opaque_boxes,
                              &s.opaque_owner);
@@ -852,6 +948,7 @@ Status Scene::create(const SceneDesc& desc, const SceneOptions& options, std::un
     for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
       Obj& o = s.objs[slot];
       if (!o.dynamic) continue;
+      if (!meter.tick(64)) return build_cancelled();
       o.tbv_period = s.initial_period(o);
       s.discretize(slot);
       o.pending_unclaimed = true;

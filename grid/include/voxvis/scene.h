@@ -28,6 +28,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <span>
@@ -160,13 +161,41 @@ class Scratch {
 
 using ViewerId = std::uint32_t;
 
+/// What a scene costs to build and keep, from its objects' footprints (the
+/// voxels and bricks each object's box touches), computed without building
+/// it: Scene::estimate.
+struct SceneCost {
+  glm::ivec3 res{1};              ///< The grid the scene gets (given or automatic).
+  std::uint64_t bytes = 0;        ///< Memory the scene keeps, bytes: grid layers, id lists, objects.
+  std::uint64_t scratch_bytes = 0;///< What each worker's Scratch grows by to serve it, bytes.
+  std::uint64_t id_entries = 0;   ///< Entries of the id lists (each object once per cell it is stored in).
+  std::uint64_t work = 0;         ///< Steps the build takes (cells written and tested), for progress.
+};
+
+/// Cooperative control of a long Scene::create or Scene::estimate, polled
+/// every few milliseconds of work.
+struct BuildControl {
+  /// When set and returning true, the work stops: Status::Code::Cancelled.
+  std::function<bool()> cancelled;
+  /// 0: none. The scene's bytes (SceneCost::bytes) may not exceed this:
+  /// refused with Status::Code::ResourceExhausted naming both figures,
+  /// before the large allocations.
+  std::uint64_t max_bytes = 0;
+};
+
 class Scene {
  public:
   /// Validates `desc` (ids unique, finite values, radius > 0, min <= max,
   /// resolution within the options) and builds the grid. On error returns the
   /// Status naming the field; nothing is allocated for a refused resolution.
   static Status create(const SceneDesc& desc, const SceneOptions& options,
-                       std::unique_ptr<Scene>* out);
+                       std::unique_ptr<Scene>* out, const BuildControl* control = nullptr);
+  /// What create() would cost (memory, id-list entries, work), validated as
+  /// create() validates, without building: O(objects) for boxes, O(the cells
+  /// a sphere's surface crosses) for spheres, and it stops as soon as
+  /// `control->max_bytes` is exceeded (ResourceExhausted) or it is cancelled.
+  static Status estimate(const SceneDesc& desc, const SceneOptions& options, SceneCost* out,
+                         const BuildControl* control = nullptr);
   /// Resolution the engine would choose for `desc` when it names none.
   static glm::ivec3 auto_resolution(const SceneDesc& desc, const SceneOptions& options);
 

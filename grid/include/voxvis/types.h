@@ -67,14 +67,24 @@ struct Move {
 /// where. `field` names the offending input (for example "objects[3].radius"
 /// or "moves[0].id"); formats add the file and line.
 struct Status {
+  /// What kind of failure: the caller's input is wrong (Invalid), the work
+  /// it asks for exceeds a stated limit of memory or time
+  /// (ResourceExhausted), the caller cancelled it (Cancelled).
+  enum class Code : std::uint8_t { Ok, Invalid, ResourceExhausted, Cancelled };
+
   bool ok = true;
   std::string field;
   std::string message;
+  Code code = Code::Ok;
 
   static Status Ok() { return {}; }
   static Status Error(std::string field_name, std::string text) {
-    return Status{false, std::move(field_name), std::move(text)};
+    return Status{false, std::move(field_name), std::move(text), Code::Invalid};
   }
+  static Status Exhausted(std::string field_name, std::string text) {
+    return Status{false, std::move(field_name), std::move(text), Code::ResourceExhausted};
+  }
+  static Status Cancelled(std::string text) { return Status{false, "", std::move(text), Code::Cancelled}; }
   explicit operator bool() const { return ok; }
   /// "field: message", or just the message when no field applies.
   std::string str() const { return field.empty() ? message : field + ": " + message; }
