@@ -171,6 +171,7 @@ void stats_to_proto(const FrameStats& in, v1::FrameStats* out) {
   out->set_ob_voxels_culled(in.ob_voxels_culled);
   out->set_ob_objects_culled(in.ob_objects_culled);
   out->set_ob_occluders(in.ob_occluders);
+  out->set_frustum_fallback(in.frustum_fallback);
 }
 
 std::uint64_t estimate_scene_bytes(const SceneDesc& desc, const glm::ivec3& res, unsigned workers) {

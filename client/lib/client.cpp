@@ -215,6 +215,7 @@ FrameStats from_proto(const v1::FrameStats& stats) {
   s.ob_voxels_culled = stats.ob_voxels_culled();
   s.ob_objects_culled = stats.ob_objects_culled();
   s.ob_occluders = stats.ob_occluders();
+  s.frustum_fallback = stats.frustum_fallback();
   return s;
 }
 

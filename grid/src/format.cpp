@@ -34,6 +34,13 @@
 
 namespace voxvis {
 
+std::string number_text(double v) {
+  if (!std::isfinite(v)) return std::isnan(v) ? "nan" : (v > 0 ? "inf" : "-inf");
+  char buf[64];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, r.ptr);
+}
+
 std::string FormatError::str() const {
   std::string out;
   if (!source.empty()) {
@@ -60,12 +67,7 @@ constexpr double kMaxId = 4294967295.0;
 // ---------------------------------------------------------------------------
 // Small text helpers.
 
-std::string num_str(double v) {
-  if (!std::isfinite(v)) return std::isnan(v) ? "nan" : (v > 0 ? "inf" : "-inf");
-  char buf[64];
-  const auto r = std::to_chars(buf, buf + sizeof buf, v);
-  return std::string(buf, r.ptr);
-}
+std::string num_str(double v) { return number_text(v); }
 
 template <typename Int>
 void append_int(std::string& out, Int v) {
@@ -577,7 +579,9 @@ class Checker {
     return true;
   }
 
-  bool vec3(const json& v, const std::string& path, Vec3* out) {
+  /// Three coordinates (magnitude at most kMaxCoordinate), or with
+  /// `any_magnitude` three finite numbers (a direction).
+  bool vec3(const json& v, const std::string& path, Vec3* out, bool any_magnitude = false) {
     if (!v.is_array()) return fail(path, "must be an array of 3 numbers, got " + describe(v));
     if (v.size() != 3) {
       return fail(path, "must be an array of 3 numbers, got " + std::to_string(v.size()) +
@@ -585,7 +589,8 @@ class Checker {
     }
     for (std::size_t i = 0; i < 3; ++i) {
       double d = 0.0;
-      if (!coordinate(v[i], join_index(path, i), &d)) return false;
+      if (!(any_magnitude ? number(v[i], join_index(path, i), &d) : coordinate(v[i], join_index(path, i), &d)))
+        return false;
       (*out)[static_cast<glm::length_t>(i)] = d;
     }
     return true;
@@ -822,10 +827,11 @@ bool parse_frame_dom(Checker& ck, const json& root, FrameInput* out) {
   struct Vec3Field {
     const char* key;
     Vec3* dst;
+    bool direction;  ///< Any finite magnitude (validate_camera's rule).
   };
-  for (const Vec3Field& f : {Vec3Field{"eye", &cam.eye}, Vec3Field{"dir", &cam.dir},
-                             Vec3Field{"up", &cam.up}}) {
-    if ((v = ck.require(root, top, f.key)) == nullptr || !ck.vec3(*v, f.key, f.dst)) return false;
+  for (const Vec3Field& f : {Vec3Field{"eye", &cam.eye, false}, Vec3Field{"dir", &cam.dir, true},
+                             Vec3Field{"up", &cam.up, true}}) {
+    if ((v = ck.require(root, top, f.key)) == nullptr || !ck.vec3(*v, f.key, f.dst, f.direction)) return false;
   }
   struct NumField {
     const char* key;
@@ -1056,6 +1062,8 @@ std::string result_to_json(std::size_t frame_index, const FrameResult& result) {
   count("pvs_size", s.pvs_size);
   out += ",\"early_exit\":";
   out += s.early_exit ? "true" : "false";
+  out += ",\"frustum_fallback\":";
+  out += s.frustum_fallback ? "true" : "false";
   count("front_voxels_culled", s.front_voxels_culled);
   count("front_objects_culled", s.front_objects_culled);
   if (s.ob_width > 0) {

@@ -14,21 +14,33 @@ using detail::finite3;
 using detail::max_abs;
 using detail::num;
 
+namespace {
+
+/// v scaled to unit length without overflow or underflow: any finite
+/// non-zero vector, 1e308 or 5e-324 components included, has a direction.
+/// Zero for the zero vector.
+Vec3 unit(const Vec3& v) {
+  const double m = max_abs(v);
+  if (!(m > 0.0)) return Vec3(0.0);
+  const Vec3 s = v / m;  // Largest component +-1: the length is in [1, sqrt(3)].
+  return s / glm::length(s);
+}
+
+}  // namespace
+
 Status validate_camera(const Camera& c) {
   if (!finite3(c.eye)) return Status::Error("eye", "must be three finite numbers");
   if (max_abs(c.eye) > kMaxCoordinate)
     return Status::Error("eye", "magnitude exceeds " + num(kMaxCoordinate));
   if (!finite3(c.dir)) return Status::Error("dir", "must be three finite numbers");
   if (!finite3(c.up)) return Status::Error("up", "must be three finite numbers");
-  const double dl = glm::length(c.dir);
-  if (!(dl > 0.0) || !std::isfinite(dl)) return Status::Error("dir", "must not be the zero vector");
-  const double ul = glm::length(c.up);
-  if (!(ul > 0.0) || !std::isfinite(ul)) return Status::Error("up", "must not be the zero vector");
-  const double s = glm::length(glm::cross(c.dir / dl, c.up / ul));
+  if (!(max_abs(c.dir) > 0.0)) return Status::Error("dir", "must not be the zero vector");
+  if (!(max_abs(c.up) > 0.0)) return Status::Error("up", "must not be the zero vector");
+  const double s = glm::length(glm::cross(unit(c.dir), unit(c.up)));
   if (!(s > 1e-9)) return Status::Error("up", "must not be parallel to dir");
-  if (!std::isfinite(c.fov_y_deg) || !(c.fov_y_deg > 0.0) || !(c.fov_y_deg < 180.0))
-    return Status::Error("fov_y_deg", "must be in (0, 180) degrees, got " + num(c.fov_y_deg));
-  if (!std::isfinite(c.aspect) || !(c.aspect >= 1e-3) || !(c.aspect <= 1e3))
+  if (!std::isfinite(c.fov_y_deg) || !(c.fov_y_deg >= kMinFovDeg) || !(c.fov_y_deg < 180.0))
+    return Status::Error("fov_y_deg", "must be in [" + num(kMinFovDeg) + ", 180) degrees, got " + num(c.fov_y_deg));
+  if (!std::isfinite(c.aspect) || !(c.aspect >= 1.0 / kMaxAspect) || !(c.aspect <= kMaxAspect))
     return Status::Error("aspect", "must be in [0.001, 1000], got " + num(c.aspect));
   if (!std::isfinite(c.near) || !(c.near > 0.0))
     return Status::Error("near", "must be > 0, got " + num(c.near));
@@ -42,12 +54,13 @@ namespace detail {
 WorldFrustum make_world_frustum(const Camera& c) {
   WorldFrustum w;
   w.eye = c.eye;
-  w.f = glm::normalize(c.dir);
-  w.r = glm::normalize(glm::cross(w.f, glm::normalize(c.up)));
+  w.f = unit(c.dir);
+  w.r = unit(glm::cross(w.f, unit(c.up)));
   w.u = glm::cross(w.r, w.f);
   constexpr double kPi = 3.14159265358979323846;
   w.tan_y = std::tan(c.fov_y_deg * kPi / 360.0);
   w.tan_x = w.tan_y * c.aspect;
+  w.aspect = c.aspect;
   w.near = c.near;
   w.far = c.far;
   // Planes relative to the eye: n·(p - eye) + d >= 0 inside.
@@ -59,6 +72,19 @@ WorldFrustum make_world_frustum(const Camera& c) {
   w.planes[4] = Plane{w.f, -c.near};
   w.planes[5] = Plane{-w.f, c.far};
   return w;
+}
+
+bool WorldFrustum::sane() const {
+  auto unit_len = [](const Vec3& v) {
+    const double l = glm::dot(v, v);
+    return finite3(v) && l > 0.99 && l < 1.01;
+  };
+  if (!unit_len(f) || !unit_len(r) || !unit_len(u)) return false;
+  if (!(std::fabs(glm::dot(f, r)) < 1e-6) || !(std::fabs(glm::dot(f, u)) < 1e-6)) return false;
+  if (!std::isfinite(tan_x) || !std::isfinite(tan_y) || !(tan_x > 0.0) || !(tan_y > 0.0)) return false;
+  for (const Plane& p : planes)
+    if (!finite3(p.n) || !std::isfinite(p.d)) return false;
+  return true;
 }
 
 bool WorldFrustum::may_intersect_box(const Vec3& lo, const Vec3& hi) const {

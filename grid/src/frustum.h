@@ -30,8 +30,15 @@ struct WorldFrustum {
   Vec3 eye{0.0};
   Vec3 f{0.0}, r{0.0}, u{0.0};  ///< Unit forward, right, up.
   double tan_x = 0.0, tan_y = 0.0;
+  double aspect = 1.0;            ///< Width / height of the image.
   double near = 0.0, far = 0.0;
   std::array<Plane, 6> planes{};  ///< left, right, bottom, top, near, far.
+
+  /// Whether every number the occlusion tests derive from the camera is
+  /// usable: a unit orthogonal basis, finite positive tangents and planes.
+  /// A validated camera always gives one; a frame answers by frustum
+  /// culling alone otherwise (FrameStats::frustum_fallback).
+  bool sane() const;
 
   /// True unless the box [lo, hi] is certainly outside the frustum
   /// (separating plane test with a small margin: errs towards "inside").

@@ -3,7 +3,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <string>
 
 #include "voxvis/types.h"
@@ -19,11 +18,7 @@ inline double max_abs(const Vec3& v) {
   return std::max(std::fabs(v.x), std::max(std::fabs(v.y), std::fabs(v.z)));
 }
 
-/// A double as it round-trips, for error messages.
-inline std::string num(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.17g", v);
-  return buf;
-}
+/// A double as it round-trips, for error messages (voxvis::number_text).
+inline std::string num(double v) { return number_text(v); }
 
 }  // namespace voxvis::detail

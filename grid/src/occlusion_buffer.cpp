@@ -51,8 +51,10 @@ void OcclusionBuffer::begin(const WorldFrustum& wf, int width) {
   tan_y_ = wf.tan_y;
   near_ = wf.near;
   const int w = std::clamp(width, 1, kMaxSide);
-  const double hh = std::round(static_cast<double>(w) * wf.tan_y / wf.tan_x);
-  const int h = static_cast<int>(std::clamp(hh, 1.0, static_cast<double>(kMaxSide)));
+  // Square pixels: W / aspect rows (the tangents' ratio, but computed from
+  // the aspect, which validation bounds, so no tangent can make it NaN).
+  const double hh = std::round(static_cast<double>(w) / wf.aspect);
+  const int h = hh >= static_cast<double>(kMaxSide) ? kMaxSide : (hh >= 1.0 ? static_cast<int>(hh) : 1);
   if (w != w_ || h != h_ || px_.empty()) {
     w_ = w;
     h_ = h;

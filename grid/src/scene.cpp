@@ -61,6 +61,9 @@ Status validate_desc(const SceneDesc& d, const SceneOptions& opt) {
                                          "xyz"[a] + " has " + num(d.bounds_min[a]) +
                                          " >= " + num(d.bounds_max[a]));
     const double extent = d.bounds_max[a] - d.bounds_min[a];
+    if (!(extent >= kMinExtent))
+      return Status::Error("bounds", std::string("extent on axis ") + "xyz"[a] + " is " + num(extent) +
+                                         "; it must be at least " + num(kMinExtent) + " world units");
     if (!(extent > 64 * kUlp * std::fmax(std::fabs(d.bounds_min[a]), std::fabs(d.bounds_max[a]))))
       return Status::Error("bounds", std::string("extent on axis ") + "xyz"[a] +
                                          " is too small to be resolved at this offset");
@@ -743,14 +746,22 @@ Scene::Scene(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 Scene::~Scene() = default;
 
 glm::ivec3 Scene::auto_resolution(const SceneDesc& desc, const SceneOptions& opt) {
-  const Vec3 ext = desc.bounds_max - desc.bounds_min;
+  // Total for any input (callers may ask before validating): an axis with
+  // no usable extent gets one voxel.
+  Vec3 ext = desc.bounds_max - desc.bounds_min;
+  for (int a = 0; a < 3; ++a)
+    if (!(ext[a] > 0.0) || !std::isfinite(ext[a])) ext[a] = 1.0;
   const double target = static_cast<double>(std::max<std::int64_t>(1, opt.auto_voxels));
-  double h = std::cbrt(ext.x * ext.y * ext.z / target);
+  // The cube root of volume / target, in logarithms: the product of three
+  // extents of 1e-100 would underflow (and of three of 1e12 come near
+  // overflow), where each extent alone is fine.
+  double h = std::exp((std::log(ext.x) + std::log(ext.y) + std::log(ext.z) - std::log(target)) / 3.0);
   glm::ivec3 r{1};
-  for (int iter = 0; iter < 200; ++iter) {
+  // h grows by a quarter a round: a few thousand rounds reach from the
+  // smallest voxel to the largest extent, however unequal the extents.
+  for (int iter = 0; iter < 5000; ++iter) {
     for (int a = 0; a < 3; ++a)
-      r[a] = static_cast<int>(std::clamp(std::round(ext[a] / h), 1.0,
-                                         static_cast<double>(opt.max_resolution)));
+      r[a] = clamp_floor(std::round(ext[a] / h), 1, std::max(1, opt.max_resolution));
     const double n = double(r.x) * r.y * r.z;
     if (n <= 2.0 * target || (r.x == 1 && r.y == 1 && r.z == 1)) break;
     h *= 1.25;  // Flat bounds: the cube-root guess overshoots on the long axes.

@@ -847,9 +847,7 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
     std::lock_guard<std::mutex> book(s.book);
     if (clock == Clock::Latest && s.time_set) t = std::fmax(t, s.time);
     if (s.time_set && t < s.time) {
-      char buf[128];
-      std::snprintf(buf, sizeof buf, "time goes backwards: %.17g < %.17g", t, s.time);
-      return Status::Error("t", buf);
+      return Status::Error("t", "time goes backwards: " + detail::num(t) + " < " + detail::num(s.time));
     }
     if (s.viewers.find(viewer) == s.viewers.end())
       return Status::Error("viewer", "unknown viewer " + std::to_string(viewer));
@@ -902,14 +900,17 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
   {
     std::shared_lock<detail::GridMutex> lock(s.mu);
     out->positions_epoch = s.moves_epoch;
-    w.ob.begin(wf, s.options.occlusion_buffer);
+    // An eye so far away that shell indices lose precision, or a camera
+    // whose basis or tangents came out unusable (validation should make
+    // that impossible): fall back to frustum culling of everything, which
+    // is always conservative.
+    st.frustum_fallback = eye_too_far(s.to_grid(camera.eye)) || !wf.sane();
+    w.ob.begin(wf, st.frustum_fallback ? 0 : s.options.occlusion_buffer);
     st.ob_width = static_cast<std::uint32_t>(w.ob.width());
-    Traversal trav(s, w, wf, st);
-    trav.run();
-
-    // An eye so far away that shell indices lose precision: fall back to
-    // frustum culling of everything, which is always conservative.
-    if (eye_too_far(s.to_grid(camera.eye))) {
+    if (!st.frustum_fallback) {
+      Traversal trav(s, w, wf, st);
+      trav.run();
+    } else {
       for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
         const Obj& o = s.objs[slot];
         if (o.under_tbv && wf.may_intersect_box(o.tbv_lo, o.tbv_hi)) w.deferred.push_back(slot);

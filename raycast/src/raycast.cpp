@@ -135,14 +135,22 @@ bool make_basis(const Camera& cam, ViewBasis* out) {
   }
   if (!(cam.fov_y_deg > 0.0 && cam.fov_y_deg < 180.0)) return false;
   if (!(cam.aspect > 0.0) || !(cam.near > 0.0) || !(cam.far > cam.near)) return false;
-  const double dl = glm::length(cam.dir);
-  if (!(dl > 0.0) || !std::isfinite(dl)) return false;
+  // Directions of any finite magnitude (1e308 or 5e-324 components): scaled
+  // by their largest component first, so that no length overflows or
+  // underflows.
+  auto scaled = [](const Vec3& v) {
+    const double m = std::max({std::fabs(v.x), std::fabs(v.y), std::fabs(v.z)});
+    return m > 0.0 ? v / m : Vec3(0.0);
+  };
+  const Vec3 dir = scaled(cam.dir), up = scaled(cam.up);
+  const double dl = glm::length(dir);
+  if (!(dl > 0.0) || !std::isfinite(dl) || !(glm::length(up) > 0.0)) return false;
   ViewBasis b;
   b.eye = cam.eye;
-  b.f = cam.dir / dl;
-  const Vec3 r = glm::cross(b.f, cam.up);
+  b.f = dir / dl;
+  const Vec3 r = glm::cross(b.f, up);
   const double rl = glm::length(r);
-  if (!(rl > 1e-12 * glm::length(cam.up)) || !std::isfinite(rl)) return false;
+  if (!(rl > 1e-12 * glm::length(up)) || !std::isfinite(rl)) return false;
   b.right = r / rl;
   b.up = glm::cross(b.right, b.f);
   b.tany = std::tan(cam.fov_y_deg * (std::numbers::pi / 360.0));

@@ -528,6 +528,7 @@ TEST(FrameFormat, Rejections) {
       {frame_with("\"dir\": [0, 0, -1]", "\"dir\": [0, 0, 0]"), "dir", ""},
       {frame_with("\"fov_y_deg\": 60", "\"fov_y_deg\": 180"), "fov_y_deg", ""},
       {frame_with("\"fov_y_deg\": 60", "\"fov_y_deg\": 0"), "fov_y_deg", ""},
+      {frame_with("\"fov_y_deg\": 60", "\"fov_y_deg\": 5e-324"), "fov_y_deg", "must be in [1e-06, 180)"},
       {frame_with("\"aspect\": 1.78", "\"aspect\": 0"), "aspect", ""},
       {frame_with("\"near\": 0.05", "\"near\": 0"), "near", ""},
       {frame_with("\"near\": 0.05", "\"near\": 1000"), "far", ""},
@@ -554,6 +555,30 @@ TEST(FrameFormat, Rejections) {
     EXPECT_THAT(err.message, HasSubstr(c.message)) << err.str();
     EXPECT_THAT(err.str(), HasSubstr("frames.jsonl:17: "));
   }
+}
+
+TEST(FrameFormat, CamerasFollowTheEngineRuleExactly) {
+  // One rule for the file, the wire and the engine (validate_camera): a
+  // direction of any finite magnitude is accepted (the file refused dir
+  // components beyond 1e12 that the server took, so such frames could not
+  // be replayed), an eye beyond kMaxCoordinate is refused by both.
+  for (const char* dir : {"[1e308, 0, 1]", "[0, 5e-324, -1]", "[-1e308, -1e308, 1e308]"}) {
+    FrameInput f;
+    FormatError err;
+    const std::string text = frame_with("\"dir\": [0, 0, -1]", std::string("\"dir\": ") + dir);
+    ASSERT_TRUE(parse_frame_line(text, "frames.jsonl", 1, &f, &err)) << dir << ": " << err.str();
+    EXPECT_TRUE(validate_camera(f.camera).ok);
+    // And it reads back as written.
+    FrameInput back;
+    ASSERT_TRUE(parse_frame_line(frame_to_json(f), "frames.jsonl", 1, &back, &err)) << err.str();
+    EXPECT_EQ(back.camera.dir, f.camera.dir);
+  }
+  FrameInput f;
+  FormatError err;
+  ASSERT_TRUE(parse_frame_line(kFrame, "frames.jsonl", 1, &f, &err)) << err.str();
+  f.camera.eye.y = 2e12;
+  EXPECT_EQ(validate_camera(f.camera).field, "eye");
+  EXPECT_EQ(frame_bad(frame_with("\"eye\": [1, 2, 3]", "\"eye\": [1, 2e12, 3]"), 1).field, "eye[1]");
 }
 
 TEST(FrameFormat, RoundTripIsExact) {
@@ -608,6 +633,7 @@ TEST(ResultFormat, OneCompactLineWithAllFields) {
   r.stats.outside_tested = 8;
   r.stats.pvs_size = 3;
   r.stats.early_exit = true;
+  r.stats.frustum_fallback = true;
   r.stats.front_voxels_culled = 9;
   r.stats.front_objects_culled = 10;
   r.stats.time_us = 12.3456;
@@ -620,7 +646,7 @@ TEST(ResultFormat, OneCompactLineWithAllFields) {
   EXPECT_EQ(j.at("pvs"), nlohmann::json::array({1, 5, 4294967295u}));
   EXPECT_EQ(j.at("wake"), nlohmann::json::array({5}));
   const nlohmann::json& s = j.at("stats");
-  EXPECT_EQ(s.size(), 14u);  // No buffer counters: ob_width is 0 (off).
+  EXPECT_EQ(s.size(), 15u);  // No buffer counters: ob_width is 0 (off).
   EXPECT_NEAR(s.at("time_us").get<double>(), 12.346, 1e-9);
   EXPECT_EQ(s.at("voxels_visited"), 123456789012ull);
   EXPECT_EQ(s.at("shells"), 17);
@@ -633,6 +659,7 @@ TEST(ResultFormat, OneCompactLineWithAllFields) {
   EXPECT_EQ(s.at("outside_tested"), 8);
   EXPECT_EQ(s.at("pvs_size"), 3);
   EXPECT_EQ(s.at("early_exit"), true);
+  EXPECT_EQ(s.at("frustum_fallback"), true);
   EXPECT_EQ(s.at("front_voxels_culled"), 9);
   EXPECT_EQ(s.at("front_objects_culled"), 10);
 }
@@ -640,7 +667,7 @@ TEST(ResultFormat, OneCompactLineWithAllFields) {
 TEST(ResultFormat, EmptyResult) {
   const std::string line = result_to_json(0, FrameResult{});
   EXPECT_THAT(line, HasSubstr("{\"frame\":0,\"pvs\":[],\"wake\":[],\"stats\":{\"time_us\":0.000,"));
-  EXPECT_THAT(line, HasSubstr("\"early_exit\":false,\"front_voxels_culled\":0,\"front_objects_culled\":0}}"));
+  EXPECT_THAT(line, HasSubstr("\"early_exit\":false,\"frustum_fallback\":false,\"front_voxels_culled\":0,\"front_objects_culled\":0}}"));
   EXPECT_FALSE(nlohmann::json::parse(line, nullptr, false).is_discarded());
 }
 

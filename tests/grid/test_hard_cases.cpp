@@ -727,6 +727,51 @@ TEST(HardCasesValidation, AbsurdResolutionIsRefusedQuickly) {
   }
 }
 
+TEST(HardCasesValidation, TinyBoundsAreRefusedByTheirExtentAndAnyAcceptedExtentGetsAGrid) {
+  // Bounds of [0, 1e-300]^3 were refused as "549755813888 voxels exceed the
+  // limit" (the automatic resolution's cube of extents underflowed), while
+  // [0, 1e-100]^3 got 84^3: an extent below the documented bound is refused
+  // as such, with or without a grid.
+  for (const bool with_grid : {false, true}) {
+    SceneDesc s;
+    s.bounds_max = Vec3(1e-300);
+    if (with_grid) s.grid = glm::ivec3(4);
+    std::unique_ptr<Scene> scene;
+    const Status st = Scene::create(s, {}, &scene);
+    EXPECT_EQ(st.field, "bounds");
+    EXPECT_EQ(st.message, "extent on axis x is 1e-300; it must be at least 1e-100 world units");
+  }
+  // Every accepted extent gets a grid within the limits, near the automatic
+  // target, however small, large or unequal the extents are.
+  const SceneOptions opt;
+  for (const Vec3& ext : {Vec3(1e-100), Vec3(1e-100, 1e12, 1.0), Vec3(2e12), Vec3(1e-100, 1e-100, 2e12),
+                          Vec3(3e-50, 7e-50, 1e-49)}) {
+    SceneDesc s;
+    s.bounds_min = -0.5 * ext;
+    s.bounds_max = s.bounds_min + ext;
+    const glm::ivec3 g = Scene::auto_resolution(s, opt);
+    const std::int64_t n = std::int64_t{g.x} * g.y * g.z;
+    EXPECT_GE(std::min({g.x, g.y, g.z}), 1);
+    EXPECT_LE(std::max({g.x, g.y, g.z}), opt.max_resolution);
+    EXPECT_LE(n, 2 * opt.auto_voxels) << g.x << "x" << g.y << "x" << g.z;
+    std::unique_ptr<Scene> scene;
+    const Status st = Scene::create(s, opt, &scene);
+    EXPECT_TRUE(st.ok) << ext.x << " " << ext.y << " " << ext.z << ": " << st.str();
+  }
+  {
+    SceneDesc s;
+    s.bounds_max = Vec3(1e-100);
+    EXPECT_EQ(Scene::auto_resolution(s, opt), glm::ivec3(84));
+  }
+  // And it is total before validation (the server asks first).
+  SceneDesc bad;
+  bad.bounds_min = Vec3(kNaN, 5.0, -std::numeric_limits<double>::infinity());
+  bad.bounds_max = Vec3(1.0, 2.0, 1.0);
+  const glm::ivec3 g = Scene::auto_resolution(bad, opt);
+  EXPECT_GE(std::min({g.x, g.y, g.z}), 1);
+  EXPECT_LE(std::max({g.x, g.y, g.z}), opt.max_resolution);
+}
+
 TEST(HardCasesValidation, FrameRefusesBadCamerasAndStillWorks) {
   EngineHarness h(small_valid_scene());
   ASSERT_TRUE(h.status().ok) << h.status().str();

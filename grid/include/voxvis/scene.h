@@ -101,6 +101,10 @@ struct FrameStats {
   std::uint32_t outside_tested = 0;   ///< Objects and TBVs beyond the grid tested against the frustum.
   std::uint32_t pvs_size = 0;
   bool early_exit = false;            ///< Traversal stopped at a fully occluded shell.
+  /// The frame was answered by frustum culling alone: the eye is too far
+  /// from the grid (over 2^40 voxels) for the occlusion tests' arithmetic, or
+  /// the camera's basis came out degenerate. Always conservative.
+  bool frustum_fallback = false;
   /// Voxels hidden by the static opaque voxels beside them on the eye's side.
   std::uint64_t front_voxels_culled = 0;
   /// Static objects in voxels so hidden, though they touch voxels in view.

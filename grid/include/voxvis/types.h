@@ -23,6 +23,12 @@ using ObjectId = std::uint32_t;
 /// Beyond it squared distances lose the precision conservative tests need.
 inline constexpr double kMaxCoordinate = 1e12;
 
+/// Smallest accepted extent of a scene's bounds along any axis, world units.
+/// Squared distances of points a voxel apart then stay far above the
+/// underflow of doubles (about 1e-308), where the conservative tests would
+/// lose every digit.
+inline constexpr double kMinExtent = 1e-100;
+
 /// Scene times are seconds within [-kMaxSceneTime, kMaxSceneTime], about
 /// ±317 years: seconds since 1970 fit, milliseconds and microseconds do not.
 /// Within it the shortest TBV validity period (1 ms) spans thousands of ulps
@@ -43,16 +49,27 @@ struct ObjectDesc {
   double max_speed = 0.0;  ///< World units per second, >= 0; dynamic objects only.
 };
 
-/// A viewer's camera for one frame. `dir` need not be normalized; `up` must
-/// not be parallel to it. The frustum is the symmetric perspective pyramid of
-/// full vertical angle `fov_y_deg` and width/height `aspect`, cut by the planes
-/// perpendicular to `dir` at depths `near` and `far` (world units from the eye).
+/// Narrowest accepted vertical field of view, degrees (about 17 nanoradians,
+/// a thousandth of the finest telescope's resolution). Below it the tangents
+/// of the half angles approach the underflow of doubles (a denormal fov has a
+/// tangent of zero) and image coordinates lose every digit.
+inline constexpr double kMinFovDeg = 1e-6;
+/// Accepted width/height of the image: [1 / kMaxAspect, kMaxAspect].
+inline constexpr double kMaxAspect = 1e3;
+
+/// A viewer's camera for one frame. `dir` and `up` need not be normalized
+/// (any finite non-zero vectors, of any magnitude); `up` must not be parallel
+/// to `dir`. The frustum is the symmetric perspective pyramid of full
+/// vertical angle `fov_y_deg` and width/height `aspect`, cut by the planes
+/// perpendicular to `dir` at depths `near` and `far` (world units from the
+/// eye). validate_camera (voxvis/scene.h) states every rule; the engine, the
+/// frames format and the server all apply it.
 struct Camera {
-  Vec3 eye{0.0};
+  Vec3 eye{0.0};            ///< World units, magnitude at most kMaxCoordinate.
   Vec3 dir{0.0, 0.0, -1.0};
   Vec3 up{0.0, 1.0, 0.0};
-  double fov_y_deg = 60.0;  ///< Degrees, in (0, 180).
-  double aspect = 1.0;      ///< Width / height, in [1e-3, 1e3].
+  double fov_y_deg = 60.0;  ///< Degrees, in [kMinFovDeg, 180).
+  double aspect = 1.0;      ///< Width / height, in [1 / kMaxAspect, kMaxAspect].
   double near = 0.05;       ///< World units, > 0.
   double far = 1000.0;      ///< World units, > near.
 };
@@ -89,5 +106,10 @@ struct Status {
   /// "field: message", or just the message when no field applies.
   std::string str() const { return field.empty() ? message : field + ": " + message; }
 };
+
+/// A double as text in the shortest form that reads back to the same value
+/// ("0.1", "1e+308", "5e-324"), or "nan", "inf", "-inf": the one way every
+/// message and format of voxvis writes a number.
+std::string number_text(double v);
 
 }  // namespace voxvis
