@@ -143,7 +143,8 @@ Status validate_desc(const SceneDesc& d, const SceneOptions& opt) {
 Scratch::Scratch() : impl_(std::make_unique<Impl>()) {}
 Scratch::~Scratch() = default;
 
-void Scratch::Impl::begin(std::size_t voxels, std::size_t objects, std::size_t boxes, std::size_t bricks) {
+void Scratch::Impl::begin(std::size_t voxels, std::size_t objects, std::size_t boxes, std::size_t bricks,
+                          std::size_t cells) {
   pvs.clear();
   deferred.clear();
   // A frame that ended early (an error) may have left its seen record.
@@ -154,12 +155,14 @@ void Scratch::Impl::begin(std::size_t voxels, std::size_t objects, std::size_t b
   if (obj_mark.size() < objects) obj_mark.resize(objects, 0);
   if (obj_seen.size() < objects) obj_seen.resize(objects, 0);
   if (box_seen.size() < boxes) box_seen.resize(boxes, 0);
+  if (cell_seen.size() < cells) cell_seen.resize(cells, 0);
   // Start the frame counter over before it wraps, so that no stale object
   // mark can ever match (stamp tags cycle separately, below).
   if (++frame == std::numeric_limits<std::uint32_t>::max()) {
     std::fill(obj_mark.begin(), obj_mark.end(), 0u);
     std::fill(obj_seen.begin(), obj_seen.end(), 0u);
     std::fill(box_seen.begin(), box_seen.end(), 0u);
+    std::fill(cell_seen.begin(), cell_seen.end(), 0u);
     frame = 1;
   }
   if (++stamp_tag == 64) {
@@ -367,20 +370,36 @@ bool Scene::Impl::union_covers(const std::uint32_t* slots, std::size_t n, int x,
   return true;
 }
 
+void Scene::Impl::coarse_static(int x, int y, int z, std::uint32_t* out, std::size_t* n, std::size_t cap) const {
+  for (int l = 1; l < pyr.levels && *n < cap; ++l) {
+    const detail::IdLists& lists = static_lists[static_cast<std::size_t>(l)];
+    if (!lists.any()) continue;
+    const int sh = detail::kCellShift * l;
+    const std::size_t c = pyr.index(l, glm::ivec3(x >> sh, y >> sh, z >> sh));
+    for (const std::uint32_t* p = lists.begin(c); p != lists.end(c) && *n < cap; ++p) out[(*n)++] = *p;
+  }
+}
+
 bool Scene::Impl::covered_now(int x, int y, int z) const {
-  std::uint32_t slots[4 * kMaxUnion];
+  std::uint32_t slots[detail::kCoverCandidates];
   std::size_t n = 0;
   const auto i = static_cast<std::size_t>(index(x, y, z));
-  for (std::uint32_t j = static_offsets[i]; j < static_offsets[i + 1] && n < std::size(slots); ++j)
-    slots[n++] = static_ids[j];
+  const detail::IdLists& own = static_lists[0];
+  for (const std::uint32_t* p = own.begin(i); p != own.end(i) && n < std::size(slots); ++p) slots[n++] = *p;
+  if (vflags[i] & kCoarseIds) coarse_static(x, y, z, slots, &n, std::size(slots));
   if (!bricks.empty()) {
-    const detail::Brick& br = bricks[static_cast<std::size_t>(
-        (x >> detail::kBrickShift) +
-        bricks_res.x * ((y >> detail::kBrickShift) + std::int64_t{bricks_res.y} * (z >> detail::kBrickShift)))];
-    for (const detail::BrickEntry& e : br.entries) {
-      if ((e.key & 1u) || !current(e)) continue;
-      if (n == std::size(slots)) return false;  // Too crowded to test: not covered (tightness only).
-      slots[n++] = e.key >> 1;
+    const int levels = coarse_dyn_live > 0 ? pyr.levels : 2;
+    for (int l = 1; l < levels; ++l) {
+      const int sh = detail::kCellShift * l;
+      const glm::ivec3 c(x >> sh, y >> sh, z >> sh);
+      const detail::Brick& br = l == 1 ? bricks[pyr.index(1, c)]
+                                       : coarse_dyn[static_cast<std::size_t>(l)][pyr.index(l, c)];
+      if (br.live == 0) continue;
+      for (const detail::BrickEntry& e : br.entries) {
+        if ((e.key & 1u) || !current(e) || objs[e.key >> 1].big) continue;
+        if (n == std::size(slots)) return false;  // Too crowded to test: not covered (tightness only).
+        slots[n++] = e.key >> 1;
+      }
     }
   }
   return union_covers(slots, n, x, y, z);
@@ -396,31 +415,38 @@ bool Scene::Impl::box_inside_grid(const Vec3& lo, const Vec3& hi) const {
 // ---------------------------------------------------------------------------
 // Dynamic layer
 
-void Scene::Impl::brick_add(const VoxBox& vb, std::uint32_t key, std::uint32_t gen) {
+namespace {
+
+/// The cells of levels >= 1 that hold the entries of voxel box vb: its range
+/// of bricks split into the coarsest cells wholly inside it (cells.h).
+template <class Emit>
+void dyn_cells_of(const detail::Pyramid& pyr, const VoxBox& vb, Emit&& emit) {
   if (vb.empty()) return;
-  const glm::ivec3 lo = vb.lo >> detail::kBrickShift;
-  const glm::ivec3 hi = vb.hi >> detail::kBrickShift;
-  for (int z = lo.z; z <= hi.z; ++z)
-    for (int y = lo.y; y <= hi.y; ++y)
-      for (int x = lo.x; x <= hi.x; ++x) {
-        detail::Brick& br =
-            bricks[static_cast<std::size_t>(x + bricks_res.x * (y + std::int64_t{bricks_res.y} * z))];
-        if (br.entries.size() >= 2 * std::size_t{br.live} + 16) {
-          std::erase_if(br.entries, [&](const detail::BrickEntry& e) { return !current(e); });
-        }
-        br.entries.push_back({key, gen});
-        ++br.live;
-      }
+  const VoxBox range{vb.lo >> detail::kBrickShift, vb.hi >> detail::kBrickShift};
+  detail::decompose(
+      pyr, 1, range, [](const VoxBox&) { return true; }, [](const VoxBox&) { return false; }, true, emit,
+      [](std::uint64_t) { return true; });
+}
+
+}  // namespace
+
+void Scene::Impl::brick_add(const VoxBox& vb, std::uint32_t key, std::uint32_t gen) {
+  dyn_cells_of(pyr, vb, [&](int level, const glm::ivec3& c) {
+    detail::Brick& br = dyn_cell(level, c);
+    if (br.entries.size() >= 2 * std::size_t{br.live} + 16) {
+      std::erase_if(br.entries, [&](const detail::BrickEntry& e) { return !current(e); });
+    }
+    br.entries.push_back({key, gen});
+    ++br.live;
+    if (level > 1) ++coarse_dyn_live;
+  });
 }
 
 void Scene::Impl::brick_remove(const VoxBox& vb) {
-  if (vb.empty()) return;
-  const glm::ivec3 lo = vb.lo >> detail::kBrickShift;
-  const glm::ivec3 hi = vb.hi >> detail::kBrickShift;
-  for (int z = lo.z; z <= hi.z; ++z)
-    for (int y = lo.y; y <= hi.y; ++y)
-      for (int x = lo.x; x <= hi.x; ++x)
-        --bricks[static_cast<std::size_t>(x + bricks_res.x * (y + std::int64_t{bricks_res.y} * z))].live;
+  dyn_cells_of(pyr, vb, [&](int level, const glm::ivec3& c) {
+    --dyn_cell(level, c).live;
+    if (level > 1) --coarse_dyn_live;
+  });
 }
 
 void Scene::Impl::list_add(std::vector<std::uint32_t>& list, std::int32_t& pos, std::uint32_t slot) {
@@ -444,6 +470,9 @@ void Scene::Impl::discretize(std::uint32_t slot) {
   const double s = slop(max_abs(o.center) + o.radius + max_abs(o.half));
   const VoxBox vb = touch_range(o.box_lo(), o.box_hi(), s);
   brick_add(vb, slot << 1, o.disc_gen);
+  if (!box_inside_grid(o.box_lo(), o.box_hi())) list_add(outside_objs, o.outside_pos, slot);
+  ++pending.objects_discretized;
+  if (o.big) return;  // No dynamic opacity (kDynOpacityMaxVoxels).
   // Adding an object only adds to the cover: a voxel changes only where the
   // object alone contains it, or where its inner box meets the voxel in a
   // volume and joins the union.
@@ -460,8 +489,6 @@ void Scene::Impl::discretize(std::uint32_t slot) {
           cov = covered_now(x, y, z);
         if (cov) vflags[i] |= kDynOpaque;
       }
-  if (!box_inside_grid(o.box_lo(), o.box_hi())) list_add(outside_objs, o.outside_pos, slot);
-  ++pending.objects_discretized;
 }
 
 void Scene::Impl::undiscretize(std::uint32_t slot) {
@@ -471,6 +498,8 @@ void Scene::Impl::undiscretize(std::uint32_t slot) {
   const VoxBox vb = touch_range(c - o.half, c + o.half, s);
   brick_remove(vb);
   ++o.disc_gen;  // Its brick entries are stale from now on.
+  list_remove(outside_objs, o.outside_pos, false);
+  if (o.big) return;  // It never took part in any cover.
   // The object no longer counts (its entries are stale): a covered voxel it
   // touched may have needed it, so its cover is computed again from the
   // objects that remain. Per-object counts would not do: a voxel covered by
@@ -482,7 +511,6 @@ void Scene::Impl::undiscretize(std::uint32_t slot) {
         if ((vflags[i] & kDynOpaque) && !covered_now(x, y, z))
           vflags[i] &= static_cast<std::uint8_t>(~kDynOpaque);
       }
-  list_remove(outside_objs, o.outside_pos, false);
 }
 
 double Scene::Impl::initial_period(const Obj& o) const {
@@ -666,20 +694,17 @@ void Scene::Impl::renew_tbv(std::uint32_t slot, double now) {
   const VoxBox old_vb = o.tbv_voxels;
   const double s = slop(std::fmax(max_abs(o.tbv_lo), max_abs(o.tbv_hi)));
   o.tbv_voxels = touch_range(o.tbv_lo, o.tbv_hi, s);
-  if (!o.tbv_voxels.empty()) {
-    const glm::ivec3 olo = old_vb.empty() ? glm::ivec3(1) : old_vb.lo >> detail::kBrickShift;
-    const glm::ivec3 ohi = old_vb.empty() ? glm::ivec3(0) : old_vb.hi >> detail::kBrickShift;
-    const glm::ivec3 nlo = o.tbv_voxels.lo >> detail::kBrickShift;
-    const glm::ivec3 nhi = o.tbv_voxels.hi >> detail::kBrickShift;
-    for (int z = nlo.z; z <= nhi.z; ++z)
-      for (int y = nlo.y; y <= nhi.y; ++y)
-        for (int x = nlo.x; x <= nhi.x; ++x) {
-          if (x >= olo.x && x <= ohi.x && y >= olo.y && y <= ohi.y && z >= olo.z && z <= ohi.z)
-            continue;  // Holds the TBV's entry already.
-          brick_add(VoxBox{glm::ivec3(x, y, z) << detail::kBrickShift,
-                           glm::ivec3(x, y, z) << detail::kBrickShift},
-                    (slot << 1) | 1u, o.tbv_gen);
-        }
+  // Entries are written per range of bricks (its coarsest cells), so a
+  // range that did not change writes nothing, and one that grew is written
+  // anew: the old entries go stale (a new generation), about the TBV's
+  // surface in cells.
+  const auto bricks_of = [](const VoxBox& b) {
+    return b.empty() ? b : VoxBox{b.lo >> detail::kBrickShift, b.hi >> detail::kBrickShift};
+  };
+  if (bricks_of(o.tbv_voxels) != bricks_of(old_vb)) {
+    brick_remove(old_vb);
+    ++o.tbv_gen;
+    brick_add(o.tbv_voxels, (slot << 1) | 1u, o.tbv_gen);
   }
   o.tbv_expiry = expiry_after(now, period);
   ++o.tbv_epoch;
@@ -815,6 +840,10 @@ Status prepare(const SceneDesc& desc, const SceneOptions& options, Scene::Impl& 
   s.spec.voxel_size = (desc.bounds_max - desc.bounds_min) / Vec3(s.res);
   s.inv_vs = 1.0 / s.spec.voxel_size;
   s.slop_bounds = std::fmax(max_abs(desc.bounds_min), max_abs(desc.bounds_max));
+  s.pyr = detail::Pyramid::make(s.res);
+  s.cell_base[1] = 0;
+  for (int l = 1; l < detail::kMaxLevels; ++l)
+    s.cell_base[static_cast<std::size_t>(l) + 1] = s.cell_base[static_cast<std::size_t>(l)] + (l < s.pyr.levels ? s.pyr.cells(l) : 0);
   s.objs.reserve(desc.objects.size());
   s.slot_of.reserve(desc.objects.size());
   for (const ObjectDesc& d : desc.objects) {
@@ -827,6 +856,14 @@ Status prepare(const SceneDesc& desc, const SceneOptions& options, Scene::Impl& 
     o.radius = d.shape == Shape::Sphere ? d.radius : 0.0;
     o.half = d.shape == Shape::Sphere ? Vec3(d.radius) : d.half_extent;
     o.last_move_t = std::numeric_limits<double>::quiet_NaN();
+    if (o.dynamic) {
+      // Voxels its box can touch wherever it goes: one more than its size
+      // in voxels per axis (capped by the grid).
+      double n = 1.0;
+      for (int a = 0; a < 3; ++a)
+        n *= std::fmin(std::ceil(2.0 * o.half[a] * s.inv_vs[a]) + 1.0, static_cast<double>(s.res[a]));
+      o.big = !(n <= static_cast<double>(detail::kDynOpacityMaxVoxels));
+    }
     s.slot_of.emplace(o.id, static_cast<std::uint32_t>(s.objs.size()));
     s.objs.push_back(o);
     if (o.dynamic) ++s.dynamic_count;
@@ -834,48 +871,204 @@ Status prepare(const SceneDesc& desc, const SceneOptions& options, Scene::Impl& 
   return Status::Ok();
 }
 
-/// Counts the static id-list entries (pass 0 of the build) and what the
-/// scene will cost; with `fill`, also writes the per-voxel counts.
-Status count_cost(Scene::Impl& s, BuildMeter& meter, SceneCost* cost, bool fill) {
+/// Splits static object `slot` into the cells it is stored in (cells.h):
+/// emit(level, cell). False when cancelled.
+template <class Emit>
+bool static_cells(const Scene::Impl& s, std::uint32_t slot, BuildMeter& meter, Emit&& emit) {
+  const Obj& o = s.objs[slot];
+  const double sl = s.slop(max_abs(o.center) + o.radius + max_abs(o.half));
+  const VoxBox vb = s.touch_range(o.box_lo(), o.box_hi(), sl);
+  // A box touches exactly the voxels of its touch range; a ball's touched
+  // voxels are a convex set of it, tested at a cell's corners.
+  const bool ball = o.shape == Shape::Sphere;
+  // Within a brick the surface cuts, a ball's voxels row by row: the voxels
+  // of row (y, z) it touches are those meeting [cx - w, cx + w], w the half
+  // chord left by the row's distance from the centre (touches()'s test,
+  // solved for x; widened, so a rounding only adds a voxel).
+  const Vec3 cg = s.to_grid(o.center);
+  const double rr = o.radius + s.slop(max_abs(o.center) + o.radius + max_abs(o.half));
+  const Vec3& vs = s.spec.voxel_size;
+  auto gap = [&](int a, int i) {
+    const double d = std::fmax(0.0, std::fmax(static_cast<double>(i) - cg[a], cg[a] - static_cast<double>(i + 1)));
+    return d * vs[a];
+  };
+  auto ball_rows = [&](const VoxBox& in) {
+    if (!ball) return false;
+    for (int z = in.lo.z; z <= in.hi.z; ++z) {
+      const double dz = gap(2, z);
+      for (int y = in.lo.y; y <= in.hi.y; ++y) {
+        const double dy = gap(1, y);
+        const double rem = rr * rr - dy * dy - dz * dz;
+        if (!(rem >= 0.0)) continue;
+        const double w = std::sqrt(rem) * (1.0 + 1e-12) * s.inv_vs.x + 1e-9 + 1e-12 * std::fabs(cg.x);
+        const double x0 = std::fmax(std::ceil(cg.x - w) - 1.0, static_cast<double>(in.lo.x));
+        const double x1 = std::fmin(std::floor(cg.x + w), static_cast<double>(in.hi.x));
+        for (double x = x0; x <= x1; x += 1.0) emit(0, glm::ivec3(static_cast<int>(x), y, z));
+      }
+    }
+    return true;
+  };
+  return detail::decompose(
+      s.pyr, 0, vb,
+      [&](const VoxBox& r) {
+        return !ball || detail::corners_pass(r, [&](int x, int y, int z) { return s.touches(o, o.center, x, y, z); });
+      },
+      ball_rows, false, emit, [&](std::uint64_t n) { return meter.tick(n); });
+}
+
+/// Entries (cells of levels >= 1) a dynamic object can hold at most: its
+/// box grown by its largest TBV growth (a TBV replaces the object's own
+/// entries, never adds to them), clamped to the grid.
+std::uint64_t dynamic_entries(const Scene::Impl& s, const Obj& o) {
+  const double period = s.options.tbv_period > 0.0 ? s.options.tbv_period : s.max_period(o);
+  const double grow = 1.5 * o.max_speed * period;  // The period's jitter is below 1.5.
+  const Vec3 lo = glm::max(o.box_lo() - grow, s.spec.bounds_min), hi = glm::min(o.box_hi() + grow, s.spec.bounds_max);
+  const VoxBox vb = s.touch_range(glm::min(lo, o.box_lo()), glm::max(hi, o.box_hi()), s.slop(max_abs(lo) + max_abs(hi)));
+  std::uint64_t n = 0;
+  if (vb.empty()) return 0;
+  detail::decompose(
+      s.pyr, 1, VoxBox{vb.lo >> detail::kBrickShift, vb.hi >> detail::kBrickShift}, [](const VoxBox&) { return true; },
+      [](const VoxBox&) { return false; }, true, [&](int, const glm::ivec3&) { ++n; },
+      [](std::uint64_t) { return true; });
+  return n;
+}
+
+/// What the scene costs with `per_level` static entries, in the terms of
+/// SceneCost; the refusal when it exceeds the meter's limit.
+/// `counted`: objects counted so far (all: the figure is the scene's; fewer:
+/// a lower bound, and a refusal says so).
+Status scene_cost(const Scene::Impl& s, const std::array<std::uint64_t, detail::kMaxLevels>& per_level,
+                  std::uint64_t dyn_entries, const BuildMeter& meter, SceneCost* cost, std::size_t counted) {
   const auto nvox = static_cast<std::uint64_t>(s.spec.voxel_count());
-  std::uint64_t total = 0;
+  const bool buffer = s.options.occlusion_buffer > 0;
+  std::uint64_t entries = 0, offsets = 0;
+  for (int l = 0; l < s.pyr.levels; ++l) {
+    const std::uint64_t e = per_level[static_cast<std::size_t>(l)];
+    entries += e;
+    if (l == 0 || e > 0) offsets += s.pyr.cells(l) + 1;
+  }
+  const std::uint64_t bricks = s.dynamic_count > 0 ? s.pyr.cells(1) : 0;
+  const std::uint64_t coarse = s.dynamic_count > 0 ? s.cell_base[static_cast<std::size_t>(s.pyr.levels)] - bricks : 0;
+  // Opaque boxes are not known before the cover is: about one per brick is
+  // a generous figure for every scene measured.
+  const std::uint64_t boxes = buffer ? s.pyr.cells(1) : 0;
+  cost->res = s.res;
+  cost->id_entries = entries + dyn_entries;
+  // Per voxel: flags (1), the opaque boxes' owners (4, buffer on); CSR
+  // offsets and entries (4 each); per brick its dynamic list head, seen
+  // time and mask; per coarser cell a list head; 16 bytes a dynamic entry
+  // (the lists keep up to twice their live entries); each object's state
+  // and index entry.
+  cost->bytes = nvox * (1 + (buffer ? 4 : 0)) + 4 * (offsets + entries) + boxes * sizeof(VoxBox) +
+                bricks * (sizeof(detail::Brick) + 16) + coarse * sizeof(detail::Brick) + 16 * dyn_entries +
+                s.objs.size() * (sizeof(Obj) + 48) + (1u << 16);
+  cost->scratch_bytes = nvox + 8 * s.objs.size() + 4 * boxes + 8 * bricks + 4 * s.cell_base[static_cast<std::size_t>(s.pyr.levels)];
+  cost->work = meter.steps() + nvox * 2;
+  if (meter.max_bytes() > 0 && cost->bytes > meter.max_bytes()) {
+    const std::string grid = std::to_string(s.res.x) + "x" + std::to_string(s.res.y) + "x" + std::to_string(s.res.z);
+    if (counted == 0 && !s.objs.empty())
+      return Status::Exhausted("memory", "the grid " + grid + " alone needs about " + mib_text(cost->bytes) +
+                                             ", over the limit of " + mib_text(meter.max_bytes()));
+    const std::string what =
+        counted < s.objs.size()
+            ? "at least " + mib_text(cost->bytes) + " (" + std::to_string(cost->id_entries) +
+                  " id-list entries from its first " + std::to_string(counted) + " of " +
+                  std::to_string(s.objs.size()) + " objects, grid " + grid + ")"
+            : "about " + mib_text(cost->bytes) + " (" + std::to_string(cost->id_entries) + " id-list entries, grid " +
+                  grid + ")";
+    return Status::Exhausted("memory", "the scene needs " + what + ", over the limit of " + mib_text(meter.max_bytes()));
+  }
+  for (std::uint64_t e : per_level)
+    if (e > std::numeric_limits<std::uint32_t>::max() - 1)
+      return Status::Exhausted("grid", "static objects fill more than 2^32 cells of one level; choose a coarser grid");
+  return Status::Ok();
+}
+
+using LevelCounts = std::array<std::uint64_t, detail::kMaxLevels>;
+
+/// Counts every static object's cells per level (no allocation), then the
+/// dynamic objects' most entries, and what the scene costs.
+Status count_cost(const Scene::Impl& s, BuildMeter& meter, SceneCost* cost, LevelCounts* counts = nullptr) {
+  LevelCounts per_level{};
+  std::uint64_t dyn = 0;
+  // The grid alone may be over the limit: refused before any object is looked at.
+  if (Status st = scene_cost(s, per_level, 0, meter, cost, 0); !st) return st;
+  for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
+    const Obj& o = s.objs[slot];
+    if (o.dynamic) {
+      dyn += dynamic_entries(s, o);
+      if (!meter.tick(8)) return build_cancelled();
+      continue;
+    }
+    if (!static_cells(s, slot, meter, [&](int l, const glm::ivec3&) { ++per_level[static_cast<std::size_t>(l)]; }))
+      return build_cancelled();
+    // Stop as soon as the limit is passed: the count costs no more than
+    // the budget it is checked against.
+    if (Status st = scene_cost(s, per_level, dyn, meter, cost, slot + 1); !st) return st;
+  }
+  if (counts) *counts = per_level;
+  return scene_cost(s, per_level, dyn, meter, cost, s.objs.size());
+}
+
+/// Builds the static id lists from the counts per level: a pass over the
+/// objects counts each cell's entries, another fills them (no buffer of
+/// pairs: the peak stays the lists' own size).
+Status build_static_lists(Scene::Impl& s, BuildMeter& meter, const LevelCounts& per_level) {
+  for (int l = 0; l < s.pyr.levels; ++l) {
+    detail::IdLists& lists = s.static_lists[static_cast<std::size_t>(l)];
+    if (l == 0 || per_level[static_cast<std::size_t>(l)] > 0) lists.offsets.assign(s.pyr.cells(l) + 1, 0);
+    lists.ids.resize(static_cast<std::size_t>(per_level[static_cast<std::size_t>(l)]));
+  }
+  for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
+    if (s.objs[slot].dynamic) continue;
+    if (!static_cells(s, slot, meter, [&](int l, const glm::ivec3& c) {
+          ++s.static_lists[static_cast<std::size_t>(l)].offsets[s.pyr.index(l, c) + 1];
+        }))
+      return build_cancelled();
+  }
+  for (int l = 0; l < s.pyr.levels; ++l) {
+    std::vector<std::uint32_t>& off = s.static_lists[static_cast<std::size_t>(l)].offsets;
+    for (std::size_t i = 1; i < off.size(); ++i) off[i] += off[i - 1];
+  }
+  // Fill, advancing each cell's start; then shift the starts back.
   for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
     const Obj& o = s.objs[slot];
     if (o.dynamic) continue;
-    const double sl = s.slop(max_abs(o.center) + o.radius + max_abs(o.half));
-    const VoxBox vb = s.touch_range(o.box_lo(), o.box_hi(), sl);
-    for (int z = vb.lo.z; z <= vb.hi.z; ++z)
-      for (int y = vb.lo.y; y <= vb.hi.y; ++y) {
-        if (!meter.tick(static_cast<std::uint64_t>(vb.hi.x - vb.lo.x + 1))) return build_cancelled();
-        for (int x = vb.lo.x; x <= vb.hi.x; ++x) {
-          if (!s.touches(o, o.center, x, y, z)) continue;
-          ++total;
-          if (fill) {
-            const auto i = static_cast<std::size_t>(s.index(x, y, z));
-            ++s.static_offsets[i + 1];
-            s.vflags[i] |= Scene::Impl::kStaticIds;
-          }
-        }
-      }
+    if (!static_cells(s, slot, meter, [&](int l, const glm::ivec3& c) {
+          detail::IdLists& lists = s.static_lists[static_cast<std::size_t>(l)];
+          lists.ids[lists.offsets[s.pyr.index(l, c)]++] = slot;
+        }))
+      return build_cancelled();
+    if (!s.box_inside_grid(o.box_lo(), o.box_hi())) s.list_add(s.outside_objs, s.objs[slot].outside_pos, slot);
   }
-  const std::uint64_t bricks = s.dynamic_count > 0 ? (nvox + 63) / 64 : 0;
-  cost->res = s.res;
-  cost->id_entries = total;
-  // flags (1) and CSR offsets (4) per voxel, the opaque boxes' owners (4)
-  // with the buffer on; 4 bytes an entry; a brick's list head, seen time
-  // and mask; each object's state and index entry.
-  cost->bytes = nvox * (1 + 4 + (s.options.occlusion_buffer > 0 ? 4 : 0)) + 4 * total + bricks * 48 +
-                s.objs.size() * (sizeof(Obj) + 48) + (1u << 16);
-  cost->scratch_bytes = nvox + 8 * s.objs.size() + 8 * bricks;
-  cost->work = meter.steps() + nvox;
-  if (meter.max_bytes() > 0 && cost->bytes > meter.max_bytes())
-    return Status::Exhausted("memory", "the scene needs about " + mib_text(cost->bytes) + " (" +
-                                           std::to_string(total) + " id-list entries at grid " +
-                                           std::to_string(s.res.x) + "x" + std::to_string(s.res.y) + "x" +
-                                           std::to_string(s.res.z) + "), over the limit of " +
-                                           mib_text(meter.max_bytes()));
-  if (total > std::numeric_limits<std::uint32_t>::max())
-    return Status::Exhausted("grid", "static objects touch more than 2^32 voxels; choose a coarser grid");
+  for (int l = 0; l < s.pyr.levels; ++l) {
+    std::vector<std::uint32_t>& off = s.static_lists[static_cast<std::size_t>(l)].offsets;
+    if (off.empty()) continue;
+    for (std::size_t i = off.size() - 1; i > 0; --i) off[i] = off[i - 1];
+    off[0] = 0;
+  }
+  // Flags: a voxel with its own list, a voxel inside a coarser cell with one.
+  const detail::IdLists& own = s.static_lists[0];
+  for (std::size_t i = 0; i + 1 < own.offsets.size(); ++i)
+    if (own.offsets[i + 1] > own.offsets[i]) s.vflags[i] |= Scene::Impl::kStaticIds;
+  for (int l = 1; l < s.pyr.levels; ++l) {
+    const detail::IdLists& lists = s.static_lists[static_cast<std::size_t>(l)];
+    if (!lists.any()) continue;
+    const glm::ivec3 r = s.pyr.res[l];
+    for (int z = 0; z < r.z; ++z)
+      for (int y = 0; y < r.y; ++y)
+        for (int x = 0; x < r.x; ++x) {
+          const std::size_t c = s.pyr.index(l, glm::ivec3(x, y, z));
+          if (lists.offsets[c + 1] == lists.offsets[c]) continue;
+          const VoxBox v = s.pyr.span(l, glm::ivec3(x, y, z), 0);
+          if (!meter.tick(static_cast<std::uint64_t>(v.hi.x - v.lo.x + 1) * (v.hi.y - v.lo.y + 1) * (v.hi.z - v.lo.z + 1)))
+            return build_cancelled();
+          for (int vz = v.lo.z; vz <= v.hi.z; ++vz)
+            for (int vy = v.lo.y; vy <= v.hi.y; ++vy)
+              for (int vx = v.lo.x; vx <= v.hi.x; ++vx)
+                s.vflags[static_cast<std::size_t>(s.index(vx, vy, vz))] |= Scene::Impl::kCoarseIds;
+        }
+  }
   return Status::Ok();
 }
 
@@ -887,7 +1080,7 @@ Status Scene::estimate(const SceneDesc& desc, const SceneOptions& options, Scene
   if (Status st = prepare(desc, options, s); !st) return st;
   BuildMeter meter(control);
   SceneCost cost;
-  if (Status st = count_cost(s, meter, &cost, false); !st) return st;
+  if (Status st = count_cost(s, meter, &cost); !st) return st;
   *out = cost;
   return Status::Ok();
 }
@@ -898,51 +1091,36 @@ Status Scene::create(const SceneDesc& desc, const SceneOptions& options, std::un
   Impl& s = *impl;
   if (Status st = prepare(desc, options, s); !st) return st;
   BuildMeter meter(control);
+  LevelCounts per_level{};
   {
     // Refused before the grid's layers are allocated.
     SceneCost cost;
-    if (Status st = count_cost(s, meter, &cost, false); !st) return st;
+    if (Status st = count_cost(s, meter, &cost, &per_level); !st) return st;
   }
   const std::size_t nvox = static_cast<std::size_t>(s.spec.voxel_count());
-
-  // Static layer: count, then fill (CSR), and the opaque bits.
   s.vflags.assign(nvox, 0);
-  s.static_offsets.assign(nvox + 1, 0);
-  {
-    SceneCost cost;
-    if (Status st = count_cost(s, meter, &cost, true); !st) return st;
-    for (std::size_t i = 0; i < nvox; ++i) s.static_offsets[i + 1] += s.static_offsets[i];
-    s.static_ids.resize(static_cast<std::size_t>(cost.id_entries));
-  }
-  for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
-    const Obj& o = s.objs[slot];
-    if (o.dynamic) continue;
-    const double sl = s.slop(max_abs(o.center) + o.radius + max_abs(o.half));
-    const VoxBox vb = s.touch_range(o.box_lo(), o.box_hi(), sl);
-    for (int z = vb.lo.z; z <= vb.hi.z; ++z)
-      for (int y = vb.lo.y; y <= vb.hi.y; ++y) {
-        if (!meter.tick(static_cast<std::uint64_t>(vb.hi.x - vb.lo.x + 1))) return build_cancelled();
-        for (int x = vb.lo.x; x <= vb.hi.x; ++x) {
-          if (!s.touches(o, o.center, x, y, z)) continue;
-          const auto i = static_cast<std::size_t>(s.index(x, y, z));
-          s.static_ids[s.static_offsets[i]++] = slot;
-        }
-      }
-    if (!s.box_inside_grid(o.box_lo(), o.box_hi())) s.list_add(s.outside_objs, s.objs[slot].outside_pos, slot);
-  }
-  // The fill advanced each start to the next voxel's start; shift back.
-  for (std::size_t i = nvox; i > 0; --i) s.static_offsets[i] = s.static_offsets[i - 1];
-  s.static_offsets[0] = 0;
-  // Static cover, once: from every static object touching the voxel.
+  if (Status st = build_static_lists(s, meter, per_level); !st) return st;
+
+  // Static cover, once: from every static object touching the voxel (its
+  // own list, then the coarser cells', kCoverCandidates at most).
+  const detail::IdLists& own = s.static_lists[0];
   for (int z = 0; z < s.res.z; ++z)
     for (int y = 0; y < s.res.y; ++y) {
       if (!meter.tick(static_cast<std::uint64_t>(s.res.x))) return build_cancelled();
       for (int x = 0; x < s.res.x; ++x) {
         const auto i = static_cast<std::size_t>(s.index(x, y, z));
-        if ((s.vflags[i] & Impl::kStaticIds) &&
-            s.union_covers(s.static_ids.data() + s.static_offsets[i],
-                           s.static_offsets[i + 1] - s.static_offsets[i], x, y, z))
-          s.vflags[i] |= Impl::kStaticOpaque;
+        const std::uint8_t f = s.vflags[i];
+        if ((f & (Impl::kStaticIds | Impl::kCoarseIds)) == 0) continue;
+        if (!(f & Impl::kCoarseIds)) {
+          if (s.union_covers(own.begin(i), static_cast<std::size_t>(own.end(i) - own.begin(i)), x, y, z))
+            s.vflags[i] |= Impl::kStaticOpaque;
+          continue;
+        }
+        std::uint32_t slots[detail::kCoverCandidates];
+        std::size_t n = 0;
+        for (const std::uint32_t* p = own.begin(i); p != own.end(i) && n < std::size(slots); ++p) slots[n++] = *p;
+        s.coarse_static(x, y, z, slots, &n, std::size(slots));
+        if (s.union_covers(slots, n, x, y, z)) s.vflags[i] |= Impl::kStaticOpaque;
       }
     }
   if (s.options.occlusion_buffer > 0)
@@ -950,8 +1128,9 @@ Status Scene::create(const SceneDesc& desc, const SceneOptions& options, std::un
                              &s.opaque_owner);
 
   if (s.dynamic_count > 0) {
-    s.bricks_res = (s.res + ((1 << detail::kBrickShift) - 1)) >> detail::kBrickShift;
-    s.bricks.resize(static_cast<std::size_t>(std::int64_t{s.bricks_res.x} * s.bricks_res.y * s.bricks_res.z));
+    s.bricks_res = s.pyr.res[1];
+    s.bricks.resize(s.pyr.cells(1));
+    for (int l = 2; l < s.pyr.levels; ++l) s.coarse_dyn[static_cast<std::size_t>(l)].resize(s.pyr.cells(l));
     s.seen_at.assign(s.bricks.size(), -std::numeric_limits<double>::infinity());
     s.seen_mask.assign(s.bricks.size(), 0);
     // Until a viewer has looked, every object may be visible: discretize all

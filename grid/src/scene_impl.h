@@ -1,16 +1,22 @@
 // scene_impl.h — the shared scene grid and per-thread scratch.
 //
-// Layout (flat arrays indexed by voxel, x fastest):
-//  * vflags          1 byte a voxel: covered by static objects, touched
-//    by a static object, covered by the objects only with a discretized
-//    dynamic one among them. One byte load answers the traversal's common
-//    case, an empty voxel. "Covered" is the union rule of docs/design.md.
-//  * static_offsets/static_ids  CSR lists of the static objects touching
-//    each voxel; built once (paper 4.5).
-//  * bricks          per 4x4x4 brick, the dynamic objects and TBVs touching
-//    it; an entry is (slot << 1 | is_tbv, generation). The exact voxel test happens when
-//    the traversal reaches a voxel, so a move or a TBV costs the bricks it
-//    covers, not the voxels.
+// Layout (flat arrays indexed by voxel, x fastest; cells.h for the cell
+// pyramid over them):
+//  * vflags          1 byte a voxel: covered by static objects, holding a
+//    static object in its own list, inside a coarser cell holding one,
+//    covered by the objects only with a discretized dynamic one among them.
+//    One byte load answers the traversal's common case, an empty voxel.
+//    "Covered" is the union rule of docs/design.md.
+//  * static_lists    per level of the pyramid, CSR lists of the static
+//    objects stored there: an object is stored in the coarsest cells whose
+//    every voxel it touches, and in single voxels only where its surface
+//    cuts a brick; built once (paper 4.5). A voxel's objects are its own
+//    list and those of the cells above it.
+//  * bricks, coarse_dyn   per brick (and per coarser cell wholly inside an
+//    object's range of bricks), the dynamic objects and TBVs touching it; an
+//    entry is (slot << 1 | is_tbv, generation). The exact voxel test happens
+//    when the traversal reaches a voxel, so a move or a TBV costs the cells
+//    it covers (about its surface), not the voxels.
 // Objects and TBVs beyond the grid box are also kept on `outside_` lists and
 // tested against the frustum each frame, since no voxel stands for them.
 #pragma once
@@ -24,19 +30,32 @@
 #include <unordered_map>
 #include <vector>
 
+#include "cells.h"
 #include "occlusion_buffer.h"
+#include "voxbox.h"
 #include "voxvis/scene.h"
 
 namespace voxvis {
 
 namespace detail {
 
-inline constexpr int kBrickShift = 2;  ///< Bricks are 4x4x4 voxels.
+inline constexpr int kBrickShift = kCellShift;  ///< Bricks are the 4x4x4-voxel cells of level 1.
+/// A dynamic object whose box touches more voxels than this adds no
+/// dynamic opacity (only tightness is lost), so that a move costs about the
+/// object's surface in cells, never its volume in voxels.
+inline constexpr std::int64_t kDynOpacityMaxVoxels = 32768;
+/// Objects the union test of one voxel looks at, at most (the first 16
+/// with a volume in the voxel take part): beyond, "not covered".
+inline constexpr std::size_t kCoverCandidates = 64;
 
-/// Integer voxel box [lo, hi] (inclusive), grid indices.
-struct VoxBox {
-  glm::ivec3 lo{0}, hi{-1};
-  bool empty() const { return hi.x < lo.x || hi.y < lo.y || hi.z < lo.z; }
+/// CSR id lists over the cells of one level: cell i holds
+/// ids[offsets[i] .. offsets[i+1]). Empty offsets: no cell holds any.
+struct IdLists {
+  std::vector<std::uint32_t> offsets;
+  std::vector<std::uint32_t> ids;  ///< Object slots.
+  bool any() const { return !ids.empty(); }
+  const std::uint32_t* begin(std::size_t cell) const { return ids.data() + offsets[cell]; }
+  const std::uint32_t* end(std::size_t cell) const { return ids.data() + offsets[cell + 1]; }
 };
 
 struct Obj {
@@ -48,6 +67,9 @@ struct Obj {
   double radius = 0.0;       ///< Sphere radius, world units.
   Vec3 half{0.0};            ///< Half extents of the bounding box, world units.
   double last_move_t = 0.0;  ///< Time of `center`, seconds.
+  /// A dynamic object touching more than kDynOpacityMaxVoxels voxels: it
+  /// takes no part in dynamic opacity (neither adds nor removes cover).
+  bool big = false;
 
   // Grid state of a dynamic object.
   bool under_tbv = false;
@@ -154,10 +176,14 @@ struct Scratch::Impl {
   /// Scenes with dynamic objects only; emptied by Scene::Impl::mark_seen.
   std::vector<std::uint64_t> seen_vox;
   std::vector<std::uint32_t> seen_list;
+  /// Per cell of levels 1 and up (Scene::Impl::cell_base): frame in which
+  /// its static objects were collected.
+  std::vector<std::uint32_t> cell_seen;
 
   /// Starts a frame for a scene of `voxels` voxels, `objects` slots,
-  /// `boxes` opaque boxes and `bricks` bricks.
-  void begin(std::size_t voxels, std::size_t objects, std::size_t boxes, std::size_t bricks);
+  /// `boxes` opaque boxes, `bricks` bricks and `cells` cells of levels >= 1.
+  void begin(std::size_t voxels, std::size_t objects, std::size_t boxes, std::size_t bricks,
+             std::size_t cells);
 };
 
 struct Scene::Impl {
@@ -185,10 +211,14 @@ struct Scene::Impl {
   std::size_t dynamic_count = 0;
 
   // Static layer.
-  static constexpr std::uint8_t kStaticOpaque = 1, kStaticIds = 2, kDynOpaque = 4;
+  static constexpr std::uint8_t kStaticOpaque = 1, kStaticIds = 2, kDynOpaque = 4, kCoarseIds = 8;
   std::vector<std::uint8_t> vflags;
-  std::vector<std::uint32_t> static_offsets;
-  std::vector<std::uint32_t> static_ids;  ///< Slots.
+  detail::Pyramid pyr;
+  /// Per level, the static objects stored there (level 0: voxels).
+  std::array<detail::IdLists, detail::kMaxLevels> static_lists;
+  /// Where each level's cells start in a flat array of all cells of levels
+  /// 1 and up (Scratch::Impl::cell_seen).
+  std::array<std::size_t, detail::kMaxLevels + 1> cell_base{};
   /// With the occlusion buffer on: the static opaque voxels as overlapping
   /// boxes, and each opaque voxel's owner box (opaque_boxes.h).
   std::vector<detail::VoxBox> opaque_boxes;
@@ -197,6 +227,11 @@ struct Scene::Impl {
   // Dynamic layer (allocated only when the scene has dynamic objects).
   glm::ivec3 bricks_res{0};
   std::vector<detail::Brick> bricks;
+  /// Per level 2 and up, the cells wholly inside an object's or TBV's range
+  /// of bricks (the same entries as a brick's; [0] and [1] unused).
+  std::array<std::vector<detail::Brick>, detail::kMaxLevels> coarse_dyn;
+  /// Live entries in coarse_dyn, all levels: readers skip those levels at 0.
+  std::uint64_t coarse_dyn_live = 0;
   /// Per brick: the latest scene time a frame saw a voxel of it (reached it
   /// and did not prove it hidden), -inf if never, and which voxels frames
   /// saw since it was last forgotten (Scratch::Impl::seen_vox). TBVs keep
@@ -267,15 +302,25 @@ struct Scene::Impl {
   /// their inner boxes covers the closed unit cube (docs/design.md, "Opacity").
   bool union_covers(const std::uint32_t* slots, std::size_t n, int x, int y, int z) const;
   /// union_covers over every static object touching the voxel and every
-  /// discretized dynamic object of its brick.
+  /// discretized dynamic object of its cells (kCoverCandidates at most).
   bool covered_now(int x, int y, int z) const;
+  /// Appends the static objects of the cells of levels >= 1 holding voxel
+  /// (x, y, z), finest first, up to `cap` in all.
+  void coarse_static(int x, int y, int z, std::uint32_t* out, std::size_t* n, std::size_t cap) const;
   bool box_inside_grid(const Vec3& lo, const Vec3& hi) const;
 
   // --- dynamic state ------------------------------------------------------
   void discretize(std::uint32_t slot);
   void undiscretize(std::uint32_t slot);
+  /// Adds an entry to every brick voxel box vb touches: to the coarsest
+  /// cells wholly inside its range of bricks (cells.h).
   void brick_add(const detail::VoxBox& vb, std::uint32_t key, std::uint32_t gen);
+  /// Lowers the live count of the same cells brick_add(vb) wrote.
   void brick_remove(const detail::VoxBox& vb);
+  /// The dynamic cell (level >= 1) of an entry.
+  detail::Brick& dyn_cell(int level, const glm::ivec3& c) {
+    return level == 1 ? bricks[pyr.index(1, c)] : coarse_dyn[static_cast<std::size_t>(level)][pyr.index(level, c)];
+  }
   /// Whether a brick entry still stands for a discretization or TBV.
   bool current(const detail::BrickEntry& e) const {
     const detail::Obj& o = objs[e.key >> 1];

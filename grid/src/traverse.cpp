@@ -485,12 +485,27 @@ void Traversal::reveal_in_frame(std::uint32_t slot) {
 
 void Traversal::collect(std::int64_t idx, const std::int64_t v[3], std::uint8_t flags) {
   const auto i = static_cast<std::size_t>(idx);
+  const detail::IdLists& own = s_.static_lists[0];
   if (flags & Scene::Impl::kStaticIds)
-    for (std::uint32_t j = s_.static_offsets[i]; j < s_.static_offsets[i + 1]; ++j) add(s_.static_ids[j]);
-  if (!has_dyn_) return;
+    for (const std::uint32_t* p = own.begin(i); p != own.end(i); ++p) add(*p);
   const int gx = static_cast<int>(E_[0] + v[0]);
   const int gy = static_cast<int>(E_[1] + v[1]);
   const int gz = static_cast<int>(E_[2] + v[2]);
+  if (flags & Scene::Impl::kCoarseIds) {
+    // The objects of the coarser cells holding the voxel touch all of it:
+    // collected with the first voxel of the cell the frame reaches.
+    for (int l = 1; l < s_.pyr.levels; ++l) {
+      const detail::IdLists& lists = s_.static_lists[static_cast<std::size_t>(l)];
+      if (!lists.any()) continue;
+      const int sh = detail::kCellShift * l;
+      const std::size_t c = s_.pyr.index(l, glm::ivec3(gx >> sh, gy >> sh, gz >> sh));
+      std::uint32_t& mark = w_.cell_seen[s_.cell_base[static_cast<std::size_t>(l)] + c];
+      if (mark == w_.frame) continue;
+      mark = w_.frame;
+      for (const std::uint32_t* p = lists.begin(c); p != lists.end(c); ++p) add(*p);
+    }
+  }
+  if (!has_dyn_) return;
   const auto bi = static_cast<std::size_t>(
       (gx >> detail::kBrickShift) +
       s_.bricks_res.x * ((gy >> detail::kBrickShift) + std::int64_t{s_.bricks_res.y} * (gz >> detail::kBrickShift)));
@@ -500,19 +515,23 @@ void Traversal::collect(std::int64_t idx, const std::int64_t v[3], std::uint8_t 
   std::uint64_t& seen = w_.seen_vox[bi];
   if (seen == 0) w_.seen_list.push_back(static_cast<std::uint32_t>(bi));
   seen |= std::uint64_t{1} << ((gx & 3) | (gy & 3) << 2 | (gz & 3) << 4);
-  const detail::Brick& brick = s_.bricks[bi];
-  if (brick.live == 0) return;
-  for (const detail::BrickEntry& e : brick.entries) {
-    if (!s_.current(e)) continue;
-    const std::uint32_t slot = e.key >> 1;
-    const Obj& o = s_.objs[slot];
-    if (e.key & 1u) {
-      const detail::VoxBox& vb = o.tbv_voxels;
-      if (gx >= vb.lo.x && gx <= vb.hi.x && gy >= vb.lo.y && gy <= vb.hi.y && gz >= vb.lo.z &&
-          gz <= vb.hi.z)
-        reveal_in_frame(slot);
-    } else if (w_.obj_seen[slot] != w_.frame && s_.touches(o, o.center, gx, gy, gz)) {
-      add(slot);
+  // The dynamic entries of the voxel's brick and of the coarser cells
+  // holding it (those wholly inside an object's range of bricks).
+  const int levels = s_.coarse_dyn_live > 0 ? s_.pyr.levels : 2;
+  for (int l = 1; l < levels; ++l) {
+    const int sh = detail::kCellShift * l;
+    const detail::Brick& cell = l == 1 ? s_.bricks[bi]
+                                       : s_.coarse_dyn[static_cast<std::size_t>(l)][s_.pyr.index(l, glm::ivec3(gx >> sh, gy >> sh, gz >> sh))];
+    if (cell.live == 0) continue;
+    for (const detail::BrickEntry& e : cell.entries) {
+      if (!s_.current(e)) continue;
+      const std::uint32_t slot = e.key >> 1;
+      const Obj& o = s_.objs[slot];
+      if (e.key & 1u) {
+        if (o.tbv_voxels.contains(glm::ivec3(gx, gy, gz))) reveal_in_frame(slot);
+      } else if (w_.obj_seen[slot] != w_.frame && s_.touches(o, o.center, gx, gy, gz)) {
+        add(slot);
+      }
     }
   }
 }
@@ -652,7 +671,7 @@ void Traversal::visit_row(int face, int a, int b, int d, std::int64_t la, std::i
       live_lo = std::min(live_lo, vb);
       live_hi = vb;
     }
-    if ((flags & Scene::Impl::kStaticIds) == 0 && !has_dyn_) continue;  // Nothing to collect.
+    if ((flags & (Scene::Impl::kStaticIds | Scene::Impl::kCoarseIds)) == 0 && !has_dyn_) continue;  // Nothing to collect.
     const Vec3 lo{static_cast<double>(v[0]), static_cast<double>(v[1]), static_cast<double>(v[2])};
     if (lf_.depth_max(lo) >= lf_.near - depth_tol_) collect(idx, v, flags);
   }
@@ -834,7 +853,8 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
     ~InFlight() { n.fetch_sub(1, std::memory_order_relaxed); }
   } in_flight{s.frames_in_flight};
   Scratch::Impl& w = scratch.impl();
-  w.begin(static_cast<std::size_t>(s.spec.voxel_count()), s.objs.size(), s.opaque_boxes.size(), s.bricks.size());
+  w.begin(static_cast<std::size_t>(s.spec.voxel_count()), s.objs.size(), s.opaque_boxes.size(), s.bricks.size(),
+          s.cell_base[static_cast<std::size_t>(s.pyr.levels)]);
   const WorldFrustum wf = detail::make_world_frustum(camera);
   FrameStats st;
   std::vector<std::uint32_t> wake;
