@@ -24,7 +24,9 @@
 #include <cstdint>
 #include <vector>
 
-#include "scene_impl.h"
+#include <glm/vec3.hpp>
+
+#include "voxbox.h"
 
 namespace voxvis::detail {
 
