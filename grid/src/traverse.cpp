@@ -171,16 +171,19 @@ class Traversal {
   std::int64_t gindex(const std::int64_t v[3]) const {
     return (E_[0] + v[0]) + stride_[1] * (E_[1] + v[1]) + stride_[2] * (E_[2] + v[2]);
   }
-  /// Whether the static opaque voxels around local voxel v on the eye's side
+  /// Whether the static opaque voxels beside local voxel v on the eye's side
   /// hide it (idx: its grid index). Every ray from the eye first meets the
-  /// closed voxel at a point q; the ray's points just before q lie in the
-  /// neighbours v + delta with each delta[a] either 0 or the step towards
-  /// the eye along a (0 only, where the eye lies in v's slab along a). When
-  /// those are all static opaque and wholly beyond the near plane, the ray is
-  /// inside an object strictly before q, so no point of v is a first hit
-  /// (not even a tie). This reaches what the shells' exit rule cannot: a
-  /// voxel just under a surface seen at a grazing angle, whose rays come
-  /// through neighbours of its own shell.
+  /// closed voxel at a point q; but for a set of rays of measure zero (those
+  /// meeting it first on an edge or a corner), q lies inside a face towards
+  /// the eye, across the axis a where the eye lies outside v's slab, and the
+  /// ray's points just before q lie in the face neighbour v + step_a. When
+  /// those neighbours are all static opaque and wholly beyond the near
+  /// plane, every such ray is inside an object strictly before q, so no
+  /// point of v is the first hit on a set of rays of positive measure: v
+  /// holds nothing visible (docs/design.md, "What visible means"). This
+  /// reaches what the shells' exit rule cannot: a voxel just under a surface
+  /// seen at a grazing angle, whose rays come through neighbours of its own
+  /// shell.
   bool front_blocked(const std::int64_t v[3], std::int64_t idx) const {
     int step[3];
     for (int a = 0; a < 3; ++a) {
@@ -196,7 +199,7 @@ class Traversal {
     }
     if (step[0] == 0 && step[1] == 0 && step[2] == 0) return false;  // The eye's voxel.
     const std::uint8_t* flags = s_.vflags.data();
-    for (int k = 1; k < 8; ++k) {
+    for (int k = 1; k < 8; k <<= 1) {  // The face neighbours: one axis each.
       std::int64_t u[3];
       std::int64_t ui = idx;
       bool skip = false;
