@@ -3,7 +3,6 @@
 #include "occlusion_buffer.h"
 
 #include <algorithm>
-#include <bit>
 #include <cmath>
 #include <limits>
 
@@ -16,24 +15,35 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kEps = std::numeric_limits<double>::epsilon();
-/// Relative allowance added to every written bound: far above the rounding
-/// of the entry depths (a near-tangent ray loses about sqrt(eps) of relative
-/// precision in the sphere's quadratic), far below any distance that matters.
+constexpr double kPi = 3.14159265358979323846;
+/// Relative allowance taken off every written bound: far above the rounding
+/// of the plane depths, far below any distance that matters.
 constexpr double kDepthSlack = 1e-7;
+/// A double bound times this and rounded to the nearest float is no larger
+/// than the bound (the rounding is at most 2^-24 relative).
+constexpr double kFloatDown = 1.0 - 0x1p-22;
 
-/// The smallest float not below d.
+/// The largest float not above d (d >= 0), for bounds that must not grow.
+float round_down(double d) {
+  if (!(d > 0.0)) return 0.0f;
+  if (d >= static_cast<double>(std::numeric_limits<float>::max())) return std::numeric_limits<float>::max();
+  float f = static_cast<float>(d);
+  if (static_cast<double>(f) > d) f = std::nextafter(f, 0.0f);
+  return f;
+}
+
+/// The smallest float not below d (d >= 0).
 float round_up(double d) {
   if (!(d < static_cast<double>(std::numeric_limits<float>::max()))) return std::numeric_limits<float>::infinity();
   float f = static_cast<float>(d);
-  if (static_cast<double>(f) < d) {
-    if (f > 0.0f) {
-      // The next float up: one more in the bits of a positive finite float.
-      f = std::bit_cast<float>(std::bit_cast<std::uint32_t>(f) + 1u);
-    } else {
-      f = std::nextafter(f, std::numeric_limits<float>::infinity());
-    }
-  }
+  if (static_cast<double>(f) < d) f = std::nextafter(f, std::numeric_limits<float>::infinity());
   return f;
+}
+
+/// How far an affine function evaluated over a w x h image may be off, and
+/// then some: its rounding is a few eps of its terms' magnitude.
+double margin(const PixelAffine& a, int w, int h) {
+  return 1e-12 * (std::fabs(a.c) + std::fabs(a.gx) * w + std::fabs(a.gy) * h) + 1e-300;
 }
 
 }  // namespace
@@ -58,51 +68,42 @@ void OcclusionBuffer::begin(const WorldFrustum& wf, int width) {
   if (w != w_ || h != h_ || px_.empty()) {
     w_ = w;
     h_ = h;
-    tw_ = (w + kTile - 1) / kTile;
+    stride_ = (w + kTile - 1) / kTile * kTile;
+    tw_ = stride_ / kTile;
     th_ = (h + kTile - 1) / kTile;
-    const auto tiles = static_cast<std::size_t>(tw_) * static_cast<std::size_t>(th_);
-    px_.assign(tiles * kTile * kTile, 0.0f);
-    tile_frame_.assign(tiles, 0u);
-    tile_max_.assign(tiles, std::numeric_limits<float>::infinity());
-    tile_dirty_.assign(tiles, 0);
+    px_.assign(static_cast<std::size_t>(stride_) * static_cast<std::size_t>(th_ * kTile), 0.0f);
+    row_lo_.assign(static_cast<std::size_t>(th_ * kTile), 0);
+    row_hi_.assign(static_cast<std::size_t>(th_ * kTile), -1);
+    tile_min_.assign(static_cast<std::size_t>(tw_) * static_cast<std::size_t>(th_), 0.0f);
+    tile_dirty_.assign(tile_min_.size(), 0);
+  } else {
+    // Clear what the last frame wrote.
+    for (int j = 0; j < h_; ++j) {
+      const auto jj = static_cast<std::size_t>(j);
+      if (row_lo_[jj] <= row_hi_[jj])
+        std::fill(px_.begin() + static_cast<std::ptrdiff_t>(jj * static_cast<std::size_t>(stride_) + static_cast<std::size_t>(row_lo_[jj])),
+                  px_.begin() + static_cast<std::ptrdiff_t>(jj * static_cast<std::size_t>(stride_) + static_cast<std::size_t>(row_hi_[jj]) + 1),
+                  0.0f);
+      row_lo_[jj] = 0;
+      row_hi_[jj] = -1;
+    }
+    std::fill(tile_min_.begin(), tile_min_.end(), 0.0f);
+    std::fill(tile_dirty_.begin(), tile_dirty_.end(), std::uint8_t{0});
   }
-  w_ = w;
-  h_ = h;
-  if (++frame_ == 0) {
-    std::fill(tile_frame_.begin(), tile_frame_.end(), 0u);
-    frame_ = 1;
-  }
+  // d(X, Y) = f + (2X/W - 1) tan_x r + (2Y/H - 1) tan_y u.
+  d0_ = f_ - tan_x_ * r_ - tan_y_ * u_;
+  dx_ = (2.0 * tan_x_ / w_) * r_;
+  dy_ = (2.0 * tan_y_ / h_) * u_;
   written_ = 0;
 }
 
-void OcclusionBuffer::write(int i, int j, double d) {
-  const auto t = static_cast<std::size_t>((j / kTile) * tw_ + i / kTile);
-  float* tile = px_.data() + t * kTile * kTile;
-  if (tile_frame_[t] != frame_) {
-    // First write this frame: empty pixels are +inf; pixels beyond the
-    // image's edge are -inf, so that they never raise the tile's maximum.
-    const int bi = (i / kTile) * kTile, bj = (j / kTile) * kTile;
-    for (int y = 0; y < kTile; ++y)
-      for (int x = 0; x < kTile; ++x)
-        tile[y * kTile + x] = (bi + x < w_ && bj + y < h_) ? std::numeric_limits<float>::infinity()
-                                                           : -std::numeric_limits<float>::infinity();
-    tile_frame_[t] = frame_;
-    tile_max_[t] = std::numeric_limits<float>::infinity();
-    tile_dirty_[t] = 0;
-  }
-  float& p = tile[(j % kTile) * kTile + i % kTile];
-  const float v = round_up(d);
-  if (v < p) {
-    p = v;
-    tile_dirty_[t] = 1;
-    ++written_;
-  }
+PixelAffine OcclusionBuffer::linear(const Vec3& n) const {
+  return PixelAffine{glm::dot(n, d0_), glm::dot(n, dx_), glm::dot(n, dy_)};
 }
 
 float OcclusionBuffer::pixel(int i, int j) const {
-  const auto t = static_cast<std::size_t>((j / kTile) * tw_ + i / kTile);
-  if (tile_frame_[t] != frame_) return std::numeric_limits<float>::infinity();
-  return px_[t * kTile * kTile + static_cast<std::size_t>((j % kTile) * kTile + i % kTile)];
+  const float w = px_[static_cast<std::size_t>(j) * static_cast<std::size_t>(stride_) + static_cast<std::size_t>(i)];
+  return w > 0.0f ? round_up(near_ / static_cast<double>(w)) : std::numeric_limits<float>::infinity();
 }
 
 bool OcclusionBuffer::rect(double x0, double x1, double y0, double y1, int* i0, int* i1, int* j0,
@@ -119,117 +120,126 @@ bool OcclusionBuffer::rect(double x0, double x1, double y0, double y1, int* i0, 
   return true;
 }
 
-template <class Entry, class Least>
-bool OcclusionBuffer::fill(int i0, int i1, int j0, int j1, double nearest, Entry&& entry, Least&& least) {
+bool OcclusionBuffer::polygon_edges(const Vec3* v, int n, ConvexOccluder* occ) const {
+  if (occ->edges + n > ConvexOccluder::kMaxEdges) return false;
+  // Scaled to unit size first: the products of coordinates of a world
+  // shrunk to 1e-90 would underflow.
+  double m = 0.0;
+  for (int k = 0; k < n; ++k) m = std::fmax(m, max_abs(v[k]));
+  if (!(m > 0.0) || !std::isfinite(m)) return false;
+  Vec3 s[24];
+  Vec3 centre(0.0);
+  for (int k = 0; k < n; ++k) {
+    s[k] = v[k] / m;
+    centre += s[k];
+  }
+  for (int k = 0; k < n; ++k) {
+    // The plane through the eye and side (v_k, v_k+1); the polygon's rays
+    // lie on its centre's side.
+    Vec3 nrm = glm::cross(s[k], s[(k + 1) % n]);
+    if (glm::dot(nrm, centre) < 0.0) nrm = -nrm;
+    const double len = glm::length(nrm);
+    // A side that defines no plane would leave the polygon unbounded there:
+    // then nothing is written.
+    if (!(len > 0.0) || !std::isfinite(len)) return false;
+    occ->edge[occ->edges++] = linear(nrm / len);
+  }
+  return true;
+}
+
+bool OcclusionBuffer::fill(const ConvexOccluder& occ) {
   bool any = false;
-  // Tile by tile, so that a tile whose every pixel already holds a bound no
-  // farther than the occluder's nearest depth there costs a few operations:
-  // the occluder cannot lower any of them.
-  for (int tj = j0 / kTile; tj <= j1 / kTile; ++tj)
-    for (int ti = i0 / kTile; ti <= i1 / kTile; ++ti) {
-      const auto t = static_cast<std::size_t>(tj * tw_ + ti);
-      if (tile_frame_[t] == frame_) {
-        const double m = static_cast<double>(tile_max(t));
-        if (m <= nearest) continue;
-        // The rays through the corners of the tile's part of the rectangle.
-        Vec3 d[4];
-        for (int c = 0; c < 4; ++c) {
-          const int ci = std::clamp((ti + (c & 1)) * kTile, i0, i1 + 1);
-          const int cj = std::clamp((tj + (c >> 1)) * kTile, j0, j1 + 1);
-          d[c] = f_ + ((2.0 * ci / w_ - 1.0) * tan_x_) * r_ + ((2.0 * cj / h_ - 1.0) * tan_y_) * u_;
-        }
-        // Writing is optional (the buffer stays conservative), so these
-        // skips may be guesses that only cost pixels the occluder could have
-        // lowered: the occluder's least depth over the tile, when the shape
-        // can bound it; and the rays through the corners all entering it
-        // beyond the tile's largest bound.
-        if (m <= least(d)) continue;
-        bool behind = true;
-        for (int c = 0; c < 4 && behind; ++c) {
-          double te = -1.0;
-          behind = entry(d[c], &te) && te > m;
-        }
-        if (behind) continue;
+  const int np = occ.planes;
+  if (np == 0) return false;
+  double em[ConvexOccluder::kMaxEdges];
+  for (int k = 0; k < occ.edges; ++k) em[k] = margin(occ.edge[k], w_, h_);
+  // Half the slopes' magnitudes: from a pixel's centre to its worst corner.
+  const double sgn = fault == BufferFault::OuterCoverage ? 1.0 : -1.0;
+  const double dsgn = fault == BufferFault::NearDepth ? 1.0 : -1.0;
+  const float skip_at = round_down(occ.w_max * near_ * occ.slack);
+  for (int j = occ.j0; j <= occ.j1; ++j) {
+    const double Y = j + 0.5;
+    double lo = occ.i0, hi = occ.i1;
+    for (int k = 0; k < occ.edges && lo <= hi; ++k) {
+      const PixelAffine& e = occ.edge[k];
+      const double t = e.c + e.gy * Y + sgn * 0.5 * (std::fabs(e.gx) + std::fabs(e.gy)) - em[k];
+      if (e.gx > 0.0) {
+        const double x = -t / e.gx - 0.5;
+        lo = std::fmax(lo, std::ceil(x + 1e-9 * (1.0 + std::fabs(x))));
+      } else if (e.gx < 0.0) {
+        const double x = -t / e.gx - 0.5;
+        hi = std::fmin(hi, std::floor(x - 1e-9 * (1.0 + std::fabs(x))));
+      } else if (!(t >= 0.0)) {
+        hi = lo - 1.0;
       }
-      any |= fill_tile(std::max(i0, ti * kTile), std::min(i1, ti * kTile + kTile - 1), std::max(j0, tj * kTile),
-                       std::min(j1, tj * kTile + kTile - 1), nearest, entry);
     }
-  return any;
-}
-
-template <class Entry>
-bool OcclusionBuffer::fill_tile(int i0, int i1, int j0, int j1, double nearest, Entry& entry) {
-  const int nc = i1 - i0 + 2, nr = j1 - j0 + 2;
-  double corner_t[(kTile + 1) * (kTile + 1)];
-  // Corner (i, j) is the image point (2i/W - 1, 2j/H - 1); neighbours share
-  // the very same corner rays (computed the same way in every tile), so the
-  // pixels' squares tile the image.
-  for (int jj = 0; jj < nr; ++jj) {
-    const double yc = 2.0 * (j0 + jj) / h_ - 1.0;
-    const Vec3 fy = f_ + (yc * tan_y_) * u_;
-    for (int ii = 0; ii < nc; ++ii) {
-      const double xc = 2.0 * (i0 + ii) / w_ - 1.0;
-      const Vec3 d = fy + (xc * tan_x_) * r_;
-      double t = -1.0;
-      if (!entry(d, &t)) t = -1.0;
-      corner_t[jj * nc + ii] = t;
+    if (!(lo <= hi)) continue;
+    const int i0 = static_cast<int>(lo), i1 = static_cast<int>(hi);
+    // Rows of tiles where every pixel already holds this occluder's
+    // largest bound or more: nothing to raise. Stale minima are lower
+    // bounds, so the skip is safe with them.
+    {
+      const std::size_t t0 = static_cast<std::size_t>(j / kTile) * static_cast<std::size_t>(tw_);
+      bool saturated = true;
+      for (int ti = i0 / kTile; ti <= i1 / kTile && saturated; ++ti)
+        saturated = tile_min_[t0 + static_cast<std::size_t>(ti)] >= skip_at;
+      if (saturated) continue;
     }
-  }
-  bool any = false, lowered = false;
-  float* tile = nullptr;
-  std::size_t t_index = 0;
-  for (int j = j0; j <= j1; ++j) {
-    const double* c0 = corner_t + (j - j0) * nc;
-    const double* c1 = c0 + nc;
+    double a[ConvexOccluder::kMaxPlanes], g[ConvexOccluder::kMaxPlanes];
+    for (int k = 0; k < ConvexOccluder::kMaxPlanes; ++k) {
+      const PixelAffine& p = occ.plane[k < np ? k : 0];
+      g[k] = p.gx;
+      a[k] = p.c + p.gy * Y + 0.5 * p.gx + dsgn * 0.5 * (std::fabs(p.gx) + std::fabs(p.gy));
+    }
+    const double cap = occ.w_cap > 0.0 ? occ.w_cap : kInf;
+    const double s = occ.slack * kFloatDown * near_;
+    float* row = px_.data() + static_cast<std::size_t>(j) * static_cast<std::size_t>(stride_);
+    int raised = 0;
     for (int i = i0; i <= i1; ++i) {
-      const int k = i - i0;
-      const double t[4] = {c0[k], c0[k + 1], c1[k], c1[k + 1]};
-      int hits = 0;
-      double tmax = 0.0;
-      for (double v : t) {
-        if (v > 0.0) {
-          ++hits;
-          tmax = std::max(tmax, v);
-        }
-      }
-      double d;
-      if (fault == BufferFault::OuterCoverage) {
-        if (hits == 0) continue;
-        d = tmax;
-      } else {
-        if (hits < 4) continue;  // Inner coverage: all four corner rays hit.
-        d = fault == BufferFault::NearDepth ? nearest : tmax;
-      }
-      if (tile == nullptr) {
-        // The first write prepares the tile (all these pixels lie in one).
-        write(i, j, d);
-        t_index = static_cast<std::size_t>((j / kTile) * tw_ + i / kTile);
-        tile = px_.data() + t_index * kTile * kTile;
-        any = true;
-        continue;
-      }
-      float& p = tile[(j % kTile) * kTile + i % kTile];
-      const float v = round_up(d);
-      if (v < p) {
-        p = v;
-        lowered = true;
-        ++written_;
-      }
+      const double x = static_cast<double>(i);
+      double w = std::fmin(std::fmin(a[0] + g[0] * x, a[1] + g[1] * x), std::fmin(a[2] + g[2] * x, cap));
+      w = std::fmax(w * s, 0.0);
+      const float fw = static_cast<float>(w);
+      raised += fw > row[i];
+      row[i] = std::max(row[i], fw);
     }
+    if (raised == 0) continue;
+    any = true;
+    written_ += static_cast<std::uint64_t>(raised);
+    const auto jj = static_cast<std::size_t>(j);
+    if (row_lo_[jj] > row_hi_[jj]) {
+      row_lo_[jj] = i0;
+      row_hi_[jj] = i1;
+    } else {
+      row_lo_[jj] = std::min(row_lo_[jj], i0);
+      row_hi_[jj] = std::max(row_hi_[jj], i1);
+    }
+    const std::size_t t0 = static_cast<std::size_t>(j / kTile) * static_cast<std::size_t>(tw_);
+    for (int ti = i0 / kTile; ti <= i1 / kTile; ++ti) tile_dirty_[t0 + static_cast<std::size_t>(ti)] = 1;
   }
-  if (lowered) tile_dirty_[t_index] = 1;
   return any;
 }
 
-float OcclusionBuffer::tile_max(std::size_t t) const {
+float OcclusionBuffer::tile_min(std::size_t t) const {
   if (tile_dirty_[t]) {
-    const float* tile = px_.data() + t * kTile * kTile;
-    float m = -std::numeric_limits<float>::infinity();
-    for (int k = 0; k < kTile * kTile; ++k) m = std::max(m, tile[k]);
-    tile_max_[t] = m;
+    const int ti = static_cast<int>(t % static_cast<std::size_t>(tw_)), tj = static_cast<int>(t / static_cast<std::size_t>(tw_));
+    const int i1 = std::min(w_, (ti + 1) * kTile), j1 = std::min(h_, (tj + 1) * kTile);
+    float m = std::numeric_limits<float>::max();
+    for (int j = tj * kTile; j < j1; ++j) {
+      const float* row = px_.data() + static_cast<std::size_t>(j) * static_cast<std::size_t>(stride_);
+      for (int i = ti * kTile; i < i1; ++i) m = std::min(m, row[i]);
+    }
+    tile_min_[t] = m;
     tile_dirty_[t] = 0;
   }
-  return tile_max_[t];
+  return tile_min_[t];
+}
+
+double OcclusionBuffer::farthest_bound() const {
+  if (!on()) return kInf;
+  float m = std::numeric_limits<float>::max();
+  for (std::size_t t = 0; t < tile_min_.size() && m > 0.0f; ++t) m = std::min(m, tile_min(t));
+  return m > 0.0f ? near_ / static_cast<double>(m) * (1.0 + 4.0 * kEps) : kInf;
 }
 
 bool OcclusionBuffer::sphere_range(const Vec3& w, double radius, double* x0, double* x1, double* y0,
@@ -249,6 +259,42 @@ bool OcclusionBuffer::sphere_range(const Vec3& w, double radius, double* x0, dou
   return std::isfinite(*x0) && std::isfinite(*x1) && std::isfinite(*y0) && std::isfinite(*y1);
 }
 
+bool OcclusionBuffer::render_disc(const Vec3& centre, const Vec3& normal, double rho, double w_max, double slack) {
+  // Pixels across the disc's image (at its nearest depth, an overestimate):
+  // under about one and a half, it cannot cover a whole pixel.
+  const double den = glm::dot(normal, centre);
+  const double z_near = std::fmax(glm::dot(f_, centre) - rho, near_);
+  const double px_across = 2.0 * rho / z_near * (0.5 * w_ / tan_x_);
+  if (!(px_across > 1.4) || !(den > 0.0)) return false;
+  // An orthonormal pair in the disc's plane.
+  const Vec3 a = std::fabs(normal.x) < 0.6 ? Vec3(1, 0, 0) : Vec3(0, 1, 0);
+  const Vec3 e1 = glm::normalize(glm::cross(normal, a));
+  const Vec3 e2 = glm::cross(normal, e1);
+  // Sides: more for a larger image, where a side's sagitta
+  // rho (1 - cos(pi / n)) would otherwise cost pixels.
+  const int n = px_across < 6.0 ? 12 : px_across < 24.0 ? 16 : 24;
+  Vec3 v[24];
+  double x0 = kInf, x1 = -kInf, y0 = kInf, y1 = -kInf;
+  for (int k = 0; k < n; ++k) {
+    const double th = 2.0 * kPi * k / n;
+    v[k] = centre + rho * (std::cos(th) * e1 + std::sin(th) * e2);
+    const double z = glm::dot(f_, v[k]);
+    if (!(z > 0.0)) return false;
+    const double x = glm::dot(r_, v[k]) / (z * tan_x_), y = glm::dot(u_, v[k]) / (z * tan_y_);
+    x0 = std::fmin(x0, x), x1 = std::fmax(x1, x), y0 = std::fmin(y0, y), y1 = std::fmax(y1, y);
+  }
+  ConvexOccluder occ;
+  if (!std::isfinite(x0 + x1 + y0 + y1)) return false;
+  if (!rect(x0, x1, y0, y1, &occ.i0, &occ.i1, &occ.j0, &occ.j1)) return false;
+  if (!polygon_edges(v, n, &occ)) return false;
+  // Reciprocal depth on the disc's plane {normal·p = den}: normal·d / den.
+  occ.plane[0] = linear(normal / den);
+  occ.planes = 1;
+  occ.w_max = w_max;
+  occ.slack = slack;
+  return fill(occ);
+}
+
 bool OcclusionBuffer::render_sphere(const Vec3& c, double radius) {
   if (!on()) return false;
   const Vec3 w = c - eye_;
@@ -258,38 +304,32 @@ bool OcclusionBuffer::render_sphere(const Vec3& c, double radius) {
   // Only the part beyond the near plane occludes (the ray caster clips
   // objects there); a ball around the eye writes nothing.
   if (!(zc + radius > near_) || !(ww > radius * radius)) return false;
-  // Shrink so that a rounding error in the hit test can only drop a pixel:
-  // the discriminant's error is a few eps * |d|^2 |w|^2, the shrink moves it
-  // by about 2 |d|^2 r delta.
+  // Shrunk, so that a rounding can only drop a pixel.
   const double delta = 1e-9 * mag + 16.0 * kEps * ww / radius;
   const double rs = radius - delta;
   if (!(rs > 0.5 * radius)) return false;
-  const double cc = ww - rs * rs;
-  // Image range: the outline's when the ball lies wholly in front of the
-  // eye's plane, else the whole image.
-  double x0 = -1.0, x1 = 1.0, y0 = -1.0, y1 = 1.0;
-  if (zc - radius > 1e-3 * radius && !sphere_range(w, radius, &x0, &x1, &y0, &y1)) return false;
-  int i0, i1, j0, j1;
-  if (!rect(x0, x1, y0, y1, &i0, &i1, &j0, &j1)) return false;
-  const double abs_slack = 1e-9 * mag;
-  const bool clip = zc - radius < near_ + 1e-9 * mag;
-  return fill(i0, i1, j0, j1, std::fmax(zc - radius, near_), [&](const Vec3& d, double* t) {
-    const double a = glm::dot(d, d);
-    const double b = glm::dot(d, w);
-    if (!(b > 0.0)) return false;
-    const double disc = b * b - a * cc;
-    if (!(disc >= 0.0)) return false;
-    const double q = b + std::sqrt(disc);
-    double te = cc / q;  // Entry parameter = depth (d·f = 1).
-    if (clip) {
-      // The part beyond the near plane: the ray must leave the shrunk ball
-      // beyond it, and is first inside the ball at max(entry, near).
-      if (!(q / a >= near_ * (1.0 + kDepthSlack) + abs_slack)) return false;
-      if (te < near_) te = near_;
-    }
-    *t = te * (1.0 + kDepthSlack) + abs_slack;
-    return true;
-  }, [](const Vec3 (&)[4]) { return 0.0; });
+  const double w_max = 1.0 / std::fmax(zc - rs, near_);
+  const double slack = 1.0 - kDepthSlack - 1e-9 * mag * w_max;
+  // The occluders are polygons inscribed in discs inside the ball.
+  if (zc - rs < near_ * (1.0 + kDepthSlack) + 1e-9 * mag) {
+    // The near plane cuts the ball: the disc it cuts, at depth `near` (every
+    // ray through it is inside the ball there).
+    const double s = zc - near_;
+    const double q2 = rs * rs - s * s;
+    return q2 > 0.0 && render_disc(w - s * f_, f_, std::sqrt(q2), w_max, slack);
+  }
+  // The disc bounded by the ball's outline (its rim, the circle of tangent
+  // points from the eye), covering all the outline; then, for a ball a few
+  // pixels wide, a disc across it nearer the eye (a plane 1/sqrt(2) of the
+  // radius before the centre: radius r/sqrt(2), about half the outline), so
+  // that what lies just behind the ball's front is hidden too.
+  const double k = rs * rs / ww;
+  const double len = std::sqrt(ww);
+  const Vec3 axis = w / len;
+  bool any = render_disc(w * (1.0 - k), axis, rs * std::sqrt(1.0 - k), w_max, slack);
+  const double inner = rs * 0.70710678118654752;
+  if (rs / (zc - rs) * (0.5 * w_ / tan_x_) >= 4.0) any |= render_disc(w - inner * axis, axis, inner, w_max, slack);
+  return any;
 }
 
 bool OcclusionBuffer::render_box(const Vec3& lo, const Vec3& hi) {
@@ -326,7 +366,6 @@ bool OcclusionBuffer::render_box(const Vec3& lo, const Vec3& hi) {
     if (z >= near_) {
       take(p);
     } else {
-      // The edges from this corner to corners beyond the plane.
       for (int bit = 1; bit < 8; bit <<= 1) {
         const int k2 = k ^ bit;
         const Vec3 q{(k2 & 1) ? H.x : L.x, (k2 & 2) ? H.y : L.y, (k2 & 4) ? H.z : L.z};
@@ -335,103 +374,90 @@ bool OcclusionBuffer::render_box(const Vec3& lo, const Vec3& hi) {
       }
     }
   }
-  // A crossing point rounded to just before the plane: widen a little (the
-  // range only limits the pixels visited; the hit test decides coverage).
   if (clip) {
+    // A crossing point rounded to just before the plane: widen a little
+    // (the range only limits the pixels visited; the edges decide).
     const double wx = 1e-9 * (1.0 + std::fmax(std::fabs(x0), std::fabs(x1)));
     const double wy = 1e-9 * (1.0 + std::fmax(std::fabs(y0), std::fabs(y1)));
     x0 -= wx, x1 += wx, y0 -= wy, y1 += wy;
   }
+  ConvexOccluder occ;
   if (!(x0 <= x1) || !(y0 <= y1) || !std::isfinite(x0 + x1 + y0 + y1)) return false;
-  int i0, i1, j0, j1;
-  if (!rect(x0, x1, y0, y1, &i0, &i1, &j0, &j1)) return false;
-  const double abs_slack = 1e-9 * mag;
-  const double near_exit = near_ * (1.0 + kDepthSlack) + abs_slack;
-  // The slab test of the ray eye + t d against [L, H], in reciprocals of
-  // the face planes so that a ray costs one division (for its depth), not
-  // three. Along an axis where the eye lies below the slab, the ray enters
-  // at t = L/d and leaves at H/d, so it needs d > 0 and meets the planes at
-  // 1/t = d/L and d/H; above the slab the same with L and H swapped; within
-  // it the ray only leaves, at 1/t = d/H (d > 0) or d/L (d < 0). The ray
-  // hits the box when every entry reciprocal is positive and the least of
-  // them (the last entry) is no smaller than the largest exit reciprocal.
-  // Reciprocals are good to a few eps, far below kDepthSlack.
-  double in_r[3], out_r[3], out_r2[3], face[3];
-  int outside[3], n_out = 0, inside[3], n_in = 0;
+  if (!rect(x0, x1, y0, y1, &occ.i0, &occ.i1, &occ.j0, &occ.j1)) return false;
+  // The slab test in reciprocal depths. Along an axis where the eye lies
+  // below the slab the ray enters at the plane L (reciprocal depth d_a/L_a,
+  // positive for a ray heading in) and leaves at H; above it, the reverse;
+  // within it, the ray only leaves, at H (d_a > 0) or L (d_a < 0). The ray
+  // meets the box when every entry is ahead of it and the last entry comes
+  // no later than the first exit: every entry's reciprocal is at least
+  // every exit's. Each is linear in d, so each condition is an edge
+  // function; the entry depth is the largest entry, so its reciprocal is
+  // the least entry reciprocal: the planes.
+  PixelAffine entry[3], exits[6];
+  int own_exit[3];  // The exit of each entry's own axis.
+  int n_in = 0, n_out = 0;
+  double least_face = kInf;
+  const double exit_cap = 1.0 / (near_ * (1.0 + kDepthSlack) + 1e-9 * mag);
   for (int a = 0; a < 3; ++a) {
-    if (L[a] > 0.0) {
-      in_r[a] = 1.0 / L[a], out_r[a] = 1.0 / H[a], face[a] = L[a];
-      outside[n_out++] = a;
-    } else if (H[a] < 0.0) {
-      in_r[a] = 1.0 / H[a], out_r[a] = 1.0 / L[a], face[a] = -H[a];
-      outside[n_out++] = a;
+    Vec3 e(0.0);
+    e[a] = 1.0;
+    if (L[a] > 0.0 || H[a] < 0.0) {
+      const double P = L[a] > 0.0 ? L[a] : H[a], Q = L[a] > 0.0 ? H[a] : L[a];
+      own_exit[n_in] = n_out;
+      entry[n_in++] = linear(e / P);
+      exits[n_out++] = linear(e / Q);
+      least_face = std::fmin(least_face, std::fabs(P));
     } else {
-      // With the eye on a face's plane (H or L exactly 0) a ray heading out
-      // through it leaves at once: +inf and -inf (1 / 0.0 would be +inf
-      // for both, and a ray out through L would seem never to leave).
-      out_r[a] = H[a] > 0.0 ? 1.0 / H[a] : kInf;
-      out_r2[a] = L[a] < 0.0 ? 1.0 / L[a] : -kInf;
-      inside[n_in++] = a;
+      // With the eye on a face's plane a ray heading out through it leaves
+      // at once: it must not head out (d_a <= 0 at H = 0, d_a >= 0 at L = 0).
+      if (H[a] > 0.0) {
+        exits[n_out++] = linear(e / H[a]);
+      } else {
+        occ.edge[occ.edges++] = linear(-e);
+      }
+      if (L[a] < 0.0) {
+        exits[n_out++] = linear(e / L[a]);
+      } else {
+        occ.edge[occ.edges++] = linear(e);
+      }
     }
   }
-  if (n_out == 0) return false;  // The eye is in the box (the test above, with rounding).
-  const double exit_cap = 1.0 / near_exit;  // Leaving beyond the near plane.
-  return fill(i0, i1, j0, j1, std::fmax(zmin, near_), [&](const Vec3& d, double* t) {
-    double least_in = kInf, most_out = 0.0, entry_face = 1.0;
-    for (int k = 0; k < n_out; ++k) {
-      const int a = outside[k];
-      const double e = d[a] * in_r[a];
-      if (!(e > 0.0)) return false;  // Heading away from the slab, or along it.
-      if (e < least_in) least_in = e, entry_face = face[a];
-      const double x = d[a] * out_r[a];
-      if (x > most_out) most_out = x;
+  if (n_in == 0) return false;  // The eye is in the box (the test above, with rounding).
+  for (int k = 0; k < n_in; ++k) {
+    occ.edge[occ.edges++] = entry[k];  // Ahead of the eye.
+    for (int x = 0; x < n_out; ++x) {
+      // The pair of one axis holds whenever the entry is ahead.
+      if (x == own_exit[k]) continue;
+      occ.edge[occ.edges++] = PixelAffine{entry[k].c - exits[x].c, entry[k].gx - exits[x].gx, entry[k].gy - exits[x].gy};
     }
-    for (int k = 0; k < n_in; ++k) {
-      const int a = inside[k];
-      const double x = std::max(d[a] * out_r[a], d[a] * out_r2[a]);  // NaN (d = 0 on a face) never wins.
-      if (x > most_out) most_out = x;
-    }
-    if (!(least_in >= most_out)) return false;
-    double tin = 1.0 / least_in;
-    // The face's coordinate is good to eps * mag: its plane's depth along
-    // this ray to eps * mag / |d| = eps * mag * tin / |face|.
-    double err = 4.0 * kEps * mag * tin / entry_face;
-    if (clip) {
-      // The part beyond the near plane: the ray must leave the shrunk box
-      // beyond it, and is first inside the box at max(entry, near).
-      if (!(most_out <= exit_cap)) return false;
-      if (tin < near_) tin = near_, err = 0.0;
-    }
-    *t = tin * (1.0 + kDepthSlack) + abs_slack + err;
-    return true;
-  }, [&](const Vec3 (&d)[4]) {
-    // Over the tile every hitting ray enters at or beyond each front
-    // face's plane, and a plane's depth P/d_a over the tile is least where
-    // |d_a| is largest, at a corner (d is affine in the image point).
-    double lb = 0.0;
-    for (int k = 0; k < n_out; ++k) {
-      const int a = outside[k];
-      double dlo = d[0][a], dhi = d[0][a];
-      for (int c = 1; c < 4; ++c) dlo = std::min(dlo, d[c][a]), dhi = std::max(dhi, d[c][a]);
-      if (L[a] > 0.0 && dlo > 0.0) lb = std::max(lb, L[a] / dhi);
-      if (H[a] < 0.0 && dhi < 0.0) lb = std::max(lb, H[a] / dlo);
-    }
-    return lb;
-  });
+    occ.plane[occ.planes++] = entry[k];
+  }
+  if (clip) {
+    // The part beyond the near plane: the ray must leave the box beyond it,
+    // and is first inside the box at max(entry, near).
+    for (int x = 0; x < n_out; ++x)
+      occ.edge[occ.edges++] = PixelAffine{exit_cap - exits[x].c, -exits[x].gx, -exits[x].gy};
+    occ.w_cap = 1.0 / near_;
+  }
+  occ.w_max = 1.0 / std::fmax(zmin, near_);
+  // A face's coordinate is good to eps * mag: its plane's depth along a ray
+  // to eps * mag / |face| of it.
+  occ.slack = 1.0 - kDepthSlack - 4.0 * kEps * mag / least_face - 1e-9 * mag * occ.w_max;
+  return fill(occ);
 }
 
-bool OcclusionBuffer::rect_hidden(int i0, int i1, int j0, int j1, double zmin) const {
+bool OcclusionBuffer::rect_hidden(int i0, int i1, int j0, int j1, double w) const {
   for (int tj = j0 / kTile; tj <= j1 / kTile; ++tj) {
     for (int ti = i0 / kTile; ti <= i1 / kTile; ++ti) {
       const auto t = static_cast<std::size_t>(tj * tw_ + ti);
-      if (tile_frame_[t] != frame_) return false;  // Empty tile.
-      const float* tile = px_.data() + t * kTile * kTile;
-      if (static_cast<double>(tile_max(t)) < zmin) continue;
+      if (static_cast<double>(tile_min(t)) > w) continue;
       const int pi0 = std::max(i0, ti * kTile), pi1 = std::min(i1, ti * kTile + kTile - 1);
       const int pj0 = std::max(j0, tj * kTile), pj1 = std::min(j1, tj * kTile + kTile - 1);
-      for (int j = pj0; j <= pj1; ++j)
+      for (int j = pj0; j <= pj1; ++j) {
+        const float* row = px_.data() + static_cast<std::size_t>(j) * static_cast<std::size_t>(stride_);
         for (int i = pi0; i <= pi1; ++i)
-          if (!(static_cast<double>(tile[(j % kTile) * kTile + i % kTile]) < zmin)) return false;
+          if (!(static_cast<double>(row[i]) > w)) return false;
+      }
     }
   }
   return true;
@@ -444,9 +470,10 @@ bool OcclusionBuffer::hides(const Vec3& rel, const Vec3& size, double tol) const
   for (int a = 0; a < 3; ++a) zmin += std::min(0.0, f_[a] * size[a]);
   zmin -= 2.0 * tol;
   if (!(zmin > near_)) return false;  // Crossing the near plane or behind the eye.
+  const double wmin = near_ / zmin;
   const double X0 = glm::dot(r_, rel), Y0 = glm::dot(u_, rel), Z0 = glm::dot(f_, rel);
   {
-    // Quick rejection: the pixel of the box's centre must hold a nearer
+    // Quick rejection: the pixel of the box's centre must hold a larger
     // bound (a necessary condition only, so any rounding is harmless).
     const Vec3 ch = 0.5 * size;
     const double zc = Z0 + glm::dot(f_, ch);
@@ -454,9 +481,7 @@ bool OcclusionBuffer::hides(const Vec3& rel, const Vec3& size, double tol) const
     const double yi = ((Y0 + glm::dot(u_, ch)) / (zc * tan_y_) + 1.0) * 0.5 * h_;
     if (xi >= 0.0 && xi < w_ && yi >= 0.0 && yi < h_) {
       const int i = static_cast<int>(xi), j = static_cast<int>(yi);
-      const auto t = static_cast<std::size_t>((j / kTile) * tw_ + i / kTile);
-      if (tile_frame_[t] != frame_) return false;
-      if (!(static_cast<double>(px_[t * kTile * kTile + static_cast<std::size_t>((j % kTile) * kTile + i % kTile)]) < zmin))
+      if (!(static_cast<double>(px_[static_cast<std::size_t>(j) * static_cast<std::size_t>(stride_) + static_cast<std::size_t>(i)]) > wmin))
         return false;
     }
   }
@@ -482,7 +507,7 @@ bool OcclusionBuffer::hides(const Vec3& rel, const Vec3& size, double tol) const
   int i0, i1, j0, j1;
   if (!rect(x0 / tan_x_ - mx, x1 / tan_x_ + mx, y0 / tan_y_ - my, y1 / tan_y_ + my, &i0, &i1, &j0, &j1))
     return false;
-  return rect_hidden(i0, i1, j0, j1, zmin);
+  return rect_hidden(i0, i1, j0, j1, wmin);
 }
 
 bool OcclusionBuffer::hides_world(const Vec3& lo, const Vec3& hi) const {
@@ -515,7 +540,7 @@ bool OcclusionBuffer::hides_sphere(const Vec3& center, double radius) const {
   const double mx = e * (1.0 + sxm) / tan_x_ + 2e-6 / w_, my = e * (1.0 + sym) / tan_y_ + 2e-6 / h_;
   int i0, i1, j0, j1;
   if (!rect(x0 - mx, x1 + mx, y0 - my, y1 + my, &i0, &i1, &j0, &j1)) return false;
-  return rect_hidden(i0, i1, j0, j1, zmin);
+  return rect_hidden(i0, i1, j0, j1, near_ / zmin);
 }
 
 }  // namespace voxvis::detail

@@ -1,37 +1,53 @@
 // occlusion_buffer.h — a conservative depth buffer in image space, per frame
 // and per viewer (owned by the worker's Scratch), with a lazily updated grid
-// of tiles over it (Hey et al., "lazy occlusion grid").
+// of tiles over it (Hey et al., "lazy occlusion grid"), filled by a
+// rasterizer of convex occluders (after Intel's Masked Occlusion Culling:
+// edge functions and plane depths, a row of pixels at a time).
 //
 // Image and depth. A ray of the frame's camera is r(t) = eye + t*d with
 // d = f + x*tan_x*r + y*tan_y*u, x, y in [-1, 1]; since d·f = 1, t is the
 // depth of the ray's points along the view direction (the metric of the near
-// and far planes). The image [-1, 1]^2 is cut into W x H closed pixels.
+// and far planes). The image [-1, 1]^2 is cut into W x H closed pixels. In
+// pixel coordinates (X, Y) in [0, W] x [0, H], d is affine, so every linear
+// function of d — the side of a plane through the eye, the reciprocal depth
+// d_a / P at which a ray meets the plane {p_a = P} — is affine in (X, Y).
 //
-// Occluders (inner coverage, farthest first hit). A convex occluder K wholly
-// beyond the near plane writes bound D into a pixel only when the rays
-// through all four corners of the pixel hit K, and D is the largest of their
-// entry depths (plus a rounding allowance). Why every ray through the pixel
-// then hits K at a depth <= D: the rays meeting K form the cone over K, which
-// is convex, so the pixel's square lies in it when its corners do; and the
-// set of image points whose entry depth is <= tau is the central projection
-// of K ∩ {depth <= tau}, which is convex, so the entry depth is quasiconvex
-// over the square and its largest value is taken at a corner. The hit tests
-// use K shrunk by an allowance, so a rounding error can only drop a pixel.
+// What a pixel holds: a lower bound w on near/depth (0: none; at most 1).
+// Every ray through the closed pixel meets an occluder, beyond the near
+// plane, at a depth no greater than near/w. (Scaled by `near`, every bound
+// fits a float whatever the scene's scale: worlds of 1e-90 or 1e12.)
+//
+// Occluders (inner coverage, farthest first hit). A convex occluder K is
+// given as the rays that meet it beyond the near plane — an intersection of
+// half-planes g_k >= 0 of affine functions of (X, Y) — and its entry depth
+// over those rays, 1 / min_a w_a(X, Y) for affine w_a (a box: its entry
+// planes; a planar polygon: its plane). A pixel is written only when the
+// minimum of every g_k over its square (at a corner: g_k(centre) minus half
+// its two slopes' magnitudes) is >= 0: then all four corner rays meet K, and
+// since the rays meeting K form a convex cone, so does every ray through the
+// pixel. It receives the minimum of min_a w_a over the square, which is the
+// reciprocal of the farthest entry depth among its corners; the set of image
+// points whose entry depth is <= tau is the projection of K ∩ {depth <= tau},
+// convex, so the entry depth is quasiconvex over the square and its largest
+// value is at a corner. Every ray through the pixel therefore meets K beyond
+// the near plane at a depth no greater than the written bound. Shapes are
+// shrunk by a rounding allowance first and bounds lowered by a relative
+// slack and rounded down to float, so a rounding can only drop a pixel or
+// loosen a bound.
 //
 // Tests (outer coverage, nearest depth). A box is hidden when it lies wholly
 // beyond the near plane and every pixel that its projection may touch (the
 // bounding rectangle of its corners' projections, widened by an allowance)
-// holds a bound D smaller than the box's least depth. Every ray to a point p
-// of the box then passes through such a pixel and enters an occluder beyond
-// the near plane at a depth < depth(p): p is not the first hit, so p is
-// hidden in the sense of the ray caster (tests/support/raycast.h).
+// holds a bound w > 1 / (the box's least depth). Every ray to a point p of the
+// box then passes through such a pixel and meets an occluder beyond the near
+// plane at a depth < depth(p): p is not the first hit of that ray.
 //
-// Tiles. Each 8x8 tile keeps the largest bound of its pixels (+inf where any
-// pixel is empty), recomputed only when a test reads a tile that occluders
-// wrote since (the bounds only decrease, so a stale maximum is still an
-// upper bound). A tile nothing was written to this frame is empty and costs
-// nothing to clear. An occluder skips every tile whose largest bound is no
-// farther than its own nearest depth: it could not lower any pixel there.
+// Tiles. Each 8x8 tile keeps the smallest bound of its pixels (0 where any
+// is empty), recomputed only when a test reads a tile that occluders wrote
+// since (bounds only grow, so a stale minimum is still a lower bound). Tests
+// read tiles first and pixels only in a tile that cannot decide. An occluder
+// skips the rows of tiles where every pixel already holds a bound at least
+// its own largest one.
 #pragma once
 
 #include <cstdint>
@@ -45,8 +61,27 @@ namespace voxvis::detail {
 /// caster catches a buffer that is not conservative. Never set by the engine.
 enum class BufferFault : std::uint8_t {
   None,
-  NearDepth,      ///< Occluders write their nearest depth instead of the farthest first hit.
-  OuterCoverage,  ///< Occluders write every pixel one corner ray hits.
+  NearDepth,      ///< Occluders write their nearest depth over the pixel instead of the farthest.
+  OuterCoverage,  ///< Occluders write every pixel a corner ray may hit.
+};
+
+/// An affine function of the pixel coordinates: c + gx * X + gy * Y.
+struct PixelAffine {
+  double c = 0.0, gx = 0.0, gy = 0.0;
+};
+
+/// A convex occluder in image space, ready to rasterize (see above).
+struct ConvexOccluder {
+  static constexpr int kMaxEdges = 32;
+  static constexpr int kMaxPlanes = 3;
+  int edges = 0;
+  PixelAffine edge[kMaxEdges];   ///< Rays meeting the occluder: every edge >= 0.
+  int planes = 0;
+  PixelAffine plane[kMaxPlanes]; ///< Reciprocal entry depth: the least of these.
+  double w_cap = 0.0;            ///< No bound above this (1 / near for a shape crossing it); 0: none.
+  double w_max = 0.0;            ///< The occluder's largest reciprocal depth (1 / its nearest depth).
+  double slack = 1.0;            ///< Factor (< 1) every written bound is multiplied by.
+  int i0 = 0, i1 = -1, j0 = 0, j1 = -1;  ///< Pixel rectangle that may be written.
 };
 
 class OcclusionBuffer {
@@ -63,7 +98,7 @@ class OcclusionBuffer {
   int height() const { return h_; }
 
   /// Renders a sphere or a box (world units) as an occluder. Returns whether
-  /// it wrote any pixel.
+  /// it raised any pixel's bound.
   bool render_sphere(const Vec3& center, double radius);
   bool render_box(const Vec3& lo, const Vec3& hi);
 
@@ -78,42 +113,54 @@ class OcclusionBuffer {
   /// so tighter than its bounding box.
   bool hides_sphere(const Vec3& center, double radius) const;
 
-  /// The bound of pixel (i, j), +inf when empty (for tests).
+  /// The largest depth bound over the whole image: every ray of the frustum
+  /// meets an occluder beyond the near plane no deeper than this; +inf while
+  /// any pixel is empty. Everything deeper is hidden (the traversal's early
+  /// end).
+  double farthest_bound() const;
+
+  /// The depth bound of pixel (i, j), +inf when empty (for tests).
   float pixel(int i, int j) const;
+  /// Pixel bounds raised this frame (a count of writes, for the counters).
+  std::uint64_t writes() const { return written_; }
 
   BufferFault fault = BufferFault::None;
 
  private:
-  void write(int i, int j, double d);
   /// Pixel rectangle [i0, i1] x [j0, j1] (clamped) from the image range of a
   /// shape; false when it misses the image.
   bool rect(double x0, double x1, double y0, double y1, int* i0, int* i1, int* j0, int* j1) const;
   /// Image range [x0, x1] x [y0, y1] of the ball (center - eye = w), false
   /// when the ball reaches the eye's plane.
   bool sphere_range(const Vec3& w, double radius, double* x0, double* x1, double* y0, double* y1) const;
-  /// Whether every pixel of [i0..i1] x [j0..j1] holds a bound below zmin.
-  bool rect_hidden(int i0, int i1, int j0, int j1, double zmin) const;
-  /// Writes the pixels of [i0..i1] x [j0..j1] from their corners' entry
-  /// depths, `entry(dir, &t)` false for a miss; `nearest` bounds the
-  /// occluder's depth from below, and `least(dirs)` over the square of
-  /// the four corner rays `dirs` (0 when the shape cannot tell): tiles
-  /// already nearer are skipped.
-  template <class Entry, class Least>
-  bool fill(int i0, int i1, int j0, int j1, double nearest, Entry&& entry, Least&& least);
-  /// The same within one tile.
-  template <class Entry>
-  bool fill_tile(int i0, int i1, int j0, int j1, double nearest, Entry& entry);
-  /// Largest bound of tile t (written this frame), refreshed when stale.
-  float tile_max(std::size_t t) const;
+  /// Whether every pixel of [i0..i1] x [j0..j1] holds a bound above w
+  /// (near / depth).
+  bool rect_hidden(int i0, int i1, int j0, int j1, double w) const;
+  /// The affine function of the pixel coordinates equal to n·d.
+  PixelAffine linear(const Vec3& n) const;
+  /// Adds the constraint that a planar convex polygon (vertices relative to
+  /// the eye, in order, at most 24) is met: one edge function per side.
+  /// False (the occluder must not be drawn) when a side defines no plane.
+  bool polygon_edges(const Vec3* v, int n, ConvexOccluder* occ) const;
+  /// Renders a disc (centre relative to the eye, unit normal, radius) as an
+  /// inscribed polygon at its plane's depth; w_max and slack as in
+  /// ConvexOccluder.
+  bool render_disc(const Vec3& centre, const Vec3& normal, double rho, double w_max, double slack);
+  /// Rasterizes the occluder; whether a bound was raised.
+  bool fill(const ConvexOccluder& occ);
+  /// Smallest bound of tile t (written this frame), refreshed when stale.
+  float tile_min(std::size_t t) const;
 
   Vec3 eye_{0.0}, f_{0.0}, r_{0.0}, u_{0.0};
+  Vec3 d0_{0.0}, dx_{0.0}, dy_{0.0};  ///< d(X, Y) = d0 + X dx + Y dy.
   double tan_x_ = 1.0, tan_y_ = 1.0, near_ = 0.0;
-  int w_ = 0, h_ = 0, tw_ = 0, th_ = 0;
-  std::uint32_t frame_ = 0;
-  std::uint64_t written_ = 0;  ///< Pixels written this frame.
-  std::vector<float> px_;      ///< Row-major by tile: tile (ti, tj) holds 64 floats.
-  std::vector<std::uint32_t> tile_frame_;  ///< Frame the tile was cleared in.
-  mutable std::vector<float> tile_max_;
+  int w_ = 0, h_ = 0, stride_ = 0, tw_ = 0, th_ = 0;
+  std::uint64_t written_ = 0;  ///< Pixel bounds raised this frame.
+  std::vector<float> px_;      ///< Row-major, stride_ floats a row: reciprocal depth bounds.
+  /// Per row, the columns written this frame ([lo, hi], lo > hi: none), so
+  /// that a frame clears only what the previous one wrote.
+  std::vector<int> row_lo_, row_hi_;
+  mutable std::vector<float> tile_min_;
   mutable std::vector<std::uint8_t> tile_dirty_;
 };
 

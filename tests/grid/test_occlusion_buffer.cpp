@@ -40,7 +40,13 @@ TEST(OcclusionBuffer, SphereInFrontOfABoxHidesIt) {
   // In front of the sphere, or reaching into it: not hidden.
   EXPECT_FALSE(ob.hides_world(Vec3(-0.5, -0.5, -6), Vec3(0.5, 0.5, -5)));
   EXPECT_FALSE(ob.hides_world(Vec3(-0.5, -0.5, -20), Vec3(0.5, 0.5, -6.9)));  // Sphere front at 7.
-  EXPECT_TRUE(ob.hides_world(Vec3(-0.5, -0.5, -20), Vec3(0.5, 0.5, -7.5)));  // Inside the ball.
+  // A ball occludes with polygons inscribed in discs inside it: its rim
+  // (the circle of its tangent points, at depth 10 - 3^2 / 10 = 9.1 here)
+  // and, across its middle, a disc 3 / sqrt(2) = 2.12 before the centre
+  // (depth 7.88). Beyond that, inside the ball, is hidden; nearer, though
+  // inside the ball, is not.
+  EXPECT_TRUE(ob.hides_world(Vec3(-0.5, -0.5, -20), Vec3(0.5, 0.5, -7.95)));
+  EXPECT_FALSE(ob.hides_world(Vec3(-0.5, -0.5, -20), Vec3(0.5, 0.5, -7.8)));
   // Beside it: not hidden.
   EXPECT_FALSE(ob.hides_world(Vec3(8, -0.5, -20), Vec3(9, 0.5, -19)));
 }
@@ -136,8 +142,12 @@ TEST(OcclusionBuffer, EyeInsideAnOccludersBoxWritesNothing) {
 /// Every ray through a written pixel must be inside the occluder beyond the
 /// near plane at a depth no greater than the pixel's bound: sampled inside pixels and
 /// exactly on their corners and edges, for random cameras, lenses and shapes.
-TEST(OcclusionBuffer, WrittenBoundsHoldForEveryRayOfThePixel) {
-  Rng rng(42);
+/// Random occluders and cameras, the scene scaled by `scale` (and, with
+/// `tiny_near`, a near plane far below the scene's scale): every ray through
+/// every written pixel meets the occluder beyond near no deeper than the
+/// pixel's bound. Returns the number of rays checked.
+int check_written_bounds(double scale, bool tiny_near, std::uint64_t seed) {
+  Rng rng(seed);
   int checked = 0;
   for (int trial = 0; trial < scaled(300); ++trial) {
     Camera cam;
@@ -148,22 +158,25 @@ TEST(OcclusionBuffer, WrittenBoundsHoldForEveryRayOfThePixel) {
     const int lens = rng.uniform_int(0, 3);
     cam.fov_y_deg = lens == 0 ? rng.uniform(1.0, 5.0) : lens == 1 ? rng.uniform(160.0, 179.0) : rng.uniform(20.0, 120.0);
     cam.aspect = rng.chance(0.2) ? rng.log_uniform(0.01, 100.0) : rng.uniform(0.5, 2.5);
-    cam.near = rng.log_uniform(1e-3, 1.0);
+    cam.near = tiny_near && rng.chance(0.5) ? 1e-100 * scale : rng.log_uniform(1e-3, 1.0) * scale;
+    cam.eye *= scale;
+    cam.far *= scale;
+    if (!validate_camera(cam).ok) continue;
     ViewBasis vb;
-    ASSERT_TRUE(make_basis(cam, &vb));
+    EXPECT_TRUE(make_basis(cam, &vb));
     const int width = rng.chance(0.5) ? 16 : 64;
     OcclusionBuffer ob = begin(cam, width);
     ObjectDesc o;
     // A third of the shapes sit at the near plane, so that they cross it.
     const Vec3 at = rng.chance(0.33) ? cam.eye + glm::normalize(cam.dir) * (cam.near * rng.uniform(0.5, 3.0)) +
-                                           rng.in_box(Vec3(-0.5), Vec3(0.5))
-                                     : cam.eye + glm::normalize(cam.dir) * rng.uniform(1.0, 20.0) +
-                                           rng.in_box(Vec3(-3), Vec3(3));
+                                           rng.in_box(Vec3(-0.5), Vec3(0.5)) * scale
+                                     : cam.eye + glm::normalize(cam.dir) * rng.uniform(1.0, 20.0) * scale +
+                                           rng.in_box(Vec3(-3), Vec3(3)) * scale;
     if (rng.chance(0.5)) {
-      o = sphere(1, at, rng.log_uniform(0.05, 5.0));
+      o = sphere(1, at, rng.log_uniform(0.05, 5.0) * scale);
       ob.render_sphere(o.center, o.radius);
     } else {
-      o = box_around(1, at, rng.in_box(Vec3(0.05), Vec3(4.0)));
+      o = box_around(1, at, rng.in_box(Vec3(0.05), Vec3(4.0)) * scale);
       ob.render_box(o.center - o.half_extent, o.center + o.half_extent);
     }
     for (int j = 0; j < ob.height(); ++j) {
@@ -176,19 +189,34 @@ TEST(OcclusionBuffer, WrittenBoundsHoldForEveryRayOfThePixel) {
           const double fy = s < 4 ? (s >> 1) : s < 8 ? ((s >> 1) & 1) : rng.uniform();
           const double x = 2.0 * (i + fx) / ob.width() - 1.0, y = 2.0 * (j + fy) / ob.height() - 1.0;
           double t0 = 0.0, t1 = 0.0;
-          ASSERT_TRUE(intersect(o, vb.eye, vb.ray_dir(x, y), &t0, &t1))
-              << "pixel " << i << "," << j << " written but a ray misses: " << describe(cam) << " " << describe(o);
+          const bool hit = intersect(o, vb.eye, vb.ray_dir(x, y), &t0, &t1);
+          EXPECT_TRUE(hit) << "pixel " << i << "," << j << " written but a ray misses: " << describe(cam) << " "
+                           << describe(o);
           // The first hit beyond the near plane (objects are clipped there).
-          ASSERT_GE(t1, cam.near) << "pixel " << i << "," << j << " written but a ray leaves before near: "
+          EXPECT_GE(t1, cam.near) << "pixel " << i << "," << j << " written but a ray leaves before near: "
                                   << describe(cam) << " " << describe(o);
-          ASSERT_LE(std::max(t0, cam.near), static_cast<double>(bound))
+          EXPECT_LE(std::max(t0, cam.near), static_cast<double>(bound))
               << "pixel " << i << "," << j << " bound too near: " << describe(cam) << " " << describe(o);
+          if (!hit || t1 < cam.near || std::max(t0, cam.near) > static_cast<double>(bound)) return checked;
           ++checked;
         }
       }
     }
   }
-  EXPECT_GT(checked, 1000);
+  return checked;
+}
+
+TEST(OcclusionBuffer, WrittenBoundsHoldForEveryRayOfThePixel) { EXPECT_GT(check_written_bounds(1.0, false, 42), 1000); }
+
+TEST(OcclusionBuffer, WrittenBoundsHoldAtEveryScale) {
+  // A world shrunk to 1e-90 or grown to 1e8, and near planes far below the
+  // scene's scale: the bounds are stored as near / depth, in float.
+  for (double scale : {1e-90, 1e-5, 1e8})
+    for (bool tiny_near : {false, true}) {
+      SCOPED_TRACE("scale " + std::to_string(scale) + (tiny_near ? " tiny near" : ""));
+      EXPECT_GT(check_written_bounds(scale, tiny_near, 43), 500);
+      if (HasFailure()) return;
+    }
 }
 
 TEST(OcclusionBuffer, SphereTestIsTighterThanItsBox) {
