@@ -6,12 +6,6 @@
 
 namespace voxvis::server {
 
-std::string num(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.17g", v);
-  return buf;
-}
-
 namespace {
 
 Status vec_check(const v1::Vec3& v, const std::string& field, Vec3* out) {
@@ -19,7 +13,7 @@ Status vec_check(const v1::Vec3& v, const std::string& field, Vec3* out) {
   if (!std::isfinite(out->x) || !std::isfinite(out->y) || !std::isfinite(out->z))
     return Status::Error(field, "must be three finite numbers");
   if (std::fmax(std::fabs(out->x), std::fmax(std::fabs(out->y), std::fabs(out->z))) > kMaxCoordinate)
-    return Status::Error(field, "magnitude must be at most " + num(kMaxCoordinate));
+    return Status::Error(field, "magnitude must be at most " + number_text(kMaxCoordinate));
   return Status::Ok();
 }
 
@@ -44,8 +38,9 @@ Status desc_from_proto(const v1::SceneDescription& in, SceneDesc* out) {
     const std::uint32_t g[3] = {in.grid().nx(), in.grid().ny(), in.grid().nz()};
     const char* names[3] = {"nx", "ny", "nz"};
     for (int a = 0; a < 3; ++a)
-      if (g[a] < 1 || g[a] > 8192)
-        return Status::Error(p + "grid." + names[a], "must be in [1, 8192], got " + std::to_string(g[a]));
+      if (g[a] < 1 || g[a] > kMaxResolution)
+        return Status::Error(p + "grid." + names[a], "must be in [1, " + std::to_string(kMaxResolution) +
+                                                         "], got " + std::to_string(g[a]));
     out->grid = glm::ivec3(static_cast<int>(g[0]), static_cast<int>(g[1]), static_cast<int>(g[2]));
   }
   out->objects.reserve(static_cast<std::size_t>(in.objects_size()));
@@ -62,9 +57,9 @@ Status desc_from_proto(const v1::SceneDescription& in, SceneDesc* out) {
           return s;
         d.radius = o.sphere().radius();
         if (!std::isfinite(d.radius) || !(d.radius > 0.0))
-          return Status::Error(f + ".radius", "must be > 0, got " + num(d.radius));
+          return Status::Error(f + ".radius", "must be > 0, got " + number_text(d.radius));
         if (d.radius > kMaxCoordinate)
-          return Status::Error(f + ".radius", "must be at most " + num(kMaxCoordinate));
+          return Status::Error(f + ".radius", "must be at most " + number_text(kMaxCoordinate));
         break;
       }
       case v1::Object::kBox: {
@@ -87,8 +82,8 @@ Status desc_from_proto(const v1::SceneDescription& in, SceneDesc* out) {
         return Status::Error(f + ".max_speed",
                              "dynamic objects need max_speed (world units per second)");
       if (!std::isfinite(speed) || !(speed >= 0.0))
-        return Status::Error(f + ".max_speed", "must be >= 0, got " + num(speed));
-      if (speed > kMaxCoordinate) return Status::Error(f + ".max_speed", "must be at most " + num(kMaxCoordinate));
+        return Status::Error(f + ".max_speed", "must be >= 0, got " + number_text(speed));
+      if (speed > kMaxCoordinate) return Status::Error(f + ".max_speed", "must be at most " + number_text(kMaxCoordinate));
       d.max_speed = speed;
     } else if (speed != 0.0) {
       return Status::Error(f + ".max_speed", "only dynamic objects have a max_speed");
@@ -172,6 +167,9 @@ void stats_to_proto(const FrameStats& in, v1::FrameStats* out) {
   out->set_ob_objects_culled(in.ob_objects_culled);
   out->set_ob_occluders(in.ob_occluders);
   out->set_frustum_fallback(in.frustum_fallback);
+  out->set_ob_pixels_written(in.ob_pixels_written);
+  out->set_cells_visited(in.cells_visited);
+  out->set_cells_hidden(in.cells_hidden);
 }
 
 std::uint64_t estimate_scene_bytes(const SceneDesc& desc, const glm::ivec3& res, unsigned workers) {

@@ -12,9 +12,6 @@
 
 namespace voxvis::server {
 
-/// A number for messages, every digit kept ("%.17g").
-std::string num(double v);
-
 /// A SceneDescription message as the engine's input. Checks what the scene
 /// file's parser checks that Scene::create does not (a shape is set, box
 /// corners ordered, coordinates within kMaxCoordinate, max_speed only on

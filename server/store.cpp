@@ -33,7 +33,7 @@ constexpr const char* kSymlinkReason = "a symbolic link (never followed in the d
 std::string errno_text(int err) { return std::strerror(err); }
 
 /// A number as the messages write it: 1e+10, 0.5.
-std::string num(double v) {
+std::string number_text(double v) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%g", v);
   return buf;
@@ -258,7 +258,7 @@ std::string parse_positions(const std::string& text, double& t, std::vector<Move
   const auto t_it = doc.find("t");
   if (t_it == doc.end() || !t_it->is_number() || !std::isfinite(t_it->get<double>()) ||
       std::fabs(t_it->get<double>()) > kMaxSceneTime) {
-    return "t: expected a finite number of seconds within ±" + num(kMaxSceneTime);
+    return "t: expected a finite number of seconds within ±" + number_text(kMaxSceneTime);
   }
   const auto list = doc.find("moves");
   if (list == doc.end() || !list->is_array()) return "moves: expected an array";
@@ -284,7 +284,7 @@ std::string parse_positions(const std::string& text, double& t, std::vector<Move
       if (!c.is_number() || !std::isfinite(c.get<double>()) ||
           std::fabs(c.get<double>()) > kMaxCoordinate) {
         return where + ".center[" + std::to_string(axis) + "]: expected a finite number within ±" +
-               num(kMaxCoordinate);
+               number_text(kMaxCoordinate);
       }
       move.center[axis] = c.get<double>();
     }
@@ -492,7 +492,7 @@ Status SceneStore::save_positions(const std::string& id, double t,
   // like one out of range, would then be quarantined at load: refuse it now,
   // where the caller can see.
   if (!std::isfinite(t) || std::fabs(t) > kMaxSceneTime) {
-    return Status::Error("t", "must be finite and within ±" + num(kMaxSceneTime));
+    return Status::Error("t", "must be finite and within ±" + number_text(kMaxSceneTime));
   }
   nlohmann::json moves = nlohmann::json::array();
   for (std::size_t i = 0; i < positions.size(); ++i) {
@@ -500,7 +500,7 @@ Status SceneStore::save_positions(const std::string& id, double t,
     for (int axis = 0; axis < 3; ++axis) {
       if (!std::isfinite(m.center[axis]) || std::fabs(m.center[axis]) > kMaxCoordinate) {
         return Status::Error("positions[" + std::to_string(i) + "].center",
-                             "must be finite and within ±" + num(kMaxCoordinate));
+                             "must be finite and within ±" + number_text(kMaxCoordinate));
       }
     }
     moves.push_back({{"id", m.id}, {"center", {m.center.x, m.center.y, m.center.z}}});

@@ -504,10 +504,10 @@ class SimReactor final
     const double from = e.sim_time.load(std::memory_order_relaxed);
     if (e.sim_clock_set && t - from > step_limit) {
       job_done(std::nullopt,
-               invalid(Status::Error("batch.t", num(t) + " is " + num(t - from) +
-                                                    " s beyond the scene's clock (" + num(from) +
+               invalid(Status::Error("batch.t", number_text(t) + " is " + number_text(t - from) +
+                                                    " s beyond the scene's clock (" + number_text(from) +
                                                     "); one batch may advance it by at most " +
-                                                    num(step_limit) + " s")));
+                                                    number_text(step_limit) + " s")));
       return;
     }
     Scene& scene = *e.scene;

@@ -216,6 +216,9 @@ FrameStats from_proto(const v1::FrameStats& stats) {
   s.ob_objects_culled = stats.ob_objects_culled();
   s.ob_occluders = stats.ob_occluders();
   s.frustum_fallback = stats.frustum_fallback();
+  s.ob_pixels_written = stats.ob_pixels_written();
+  s.cells_visited = stats.cells_visited();
+  s.cells_hidden = stats.cells_hidden();
   return s;
 }
 

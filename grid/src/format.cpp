@@ -60,14 +60,12 @@ namespace {
 using json = nlohmann::json;
 
 constexpr std::string_view kSceneFormat = "voxvis-scene/1";
-constexpr int kMaxGridPerAxis = 8192;
 constexpr std::size_t kMaxDepth = 64;
 constexpr double kMaxId = 4294967295.0;
 
 // ---------------------------------------------------------------------------
 // Small text helpers.
 
-std::string num_str(double v) { return number_text(v); }
 
 template <typename Int>
 void append_int(std::string& out, Int v) {
@@ -134,7 +132,7 @@ std::string describe(const json& v) {
     case json::value_t::number_unsigned:
       return std::to_string(v.get<std::uint64_t>());
     case json::value_t::number_float:
-      return num_str(v.get<double>());
+      return number_text(v.get<double>());
     case json::value_t::string:
       return "string " + quote_text(v.get_ref<const std::string&>(), '"');
     case json::value_t::array:
@@ -394,7 +392,7 @@ class DomBuilder {
       error_field_ = pending_field();
       error_message_ = "number " + quote_text(last_token) +
                        " is out of range: numbers must be finite (and at most " +
-                       num_str(kMaxCoordinate) + " in magnitude for coordinates)";
+                       number_text(kMaxCoordinate) + " in magnitude for coordinates)";
       return false;
     }
     std::string what = ex.what();
@@ -565,7 +563,7 @@ class Checker {
   bool number(const json& v, const std::string& path, double* out) {
     if (!v.is_number()) return fail(path, "must be a number, got " + describe(v));
     const double d = v.get<double>();
-    if (!std::isfinite(d)) return fail(path, "must be finite, got " + num_str(d));
+    if (!std::isfinite(d)) return fail(path, "must be finite, got " + number_text(d));
     *out = d;
     return true;
   }
@@ -573,8 +571,8 @@ class Checker {
   bool coordinate(const json& v, const std::string& path, double* out) {
     if (!number(v, path, out)) return false;
     if (std::fabs(*out) > kMaxCoordinate) {
-      return fail(path, "magnitude must be at most " + num_str(kMaxCoordinate) + ", got " +
-                            num_str(*out));
+      return fail(path, "magnitude must be at most " + number_text(kMaxCoordinate) + ", got " +
+                            number_text(*out));
     }
     return true;
   }
@@ -673,10 +671,10 @@ bool parse_object(Checker& ck, const json& v, const std::string& path, ObjectDes
     if (radius == nullptr) return false;
     const std::string rp = join_key(path, "radius");
     if (!ck.number(*radius, rp, &obj.radius)) return false;
-    if (!(obj.radius > 0.0)) return ck.fail(rp, "must be > 0, got " + num_str(obj.radius));
+    if (!(obj.radius > 0.0)) return ck.fail(rp, "must be > 0, got " + number_text(obj.radius));
     if (obj.radius > kMaxCoordinate) {
-      return ck.fail(rp, "must be at most " + num_str(kMaxCoordinate) + ", got " +
-                             num_str(obj.radius));
+      return ck.fail(rp, "must be at most " + number_text(kMaxCoordinate) + ", got " +
+                             number_text(obj.radius));
     }
   } else if (shape_name == "box") {
     obj.shape = Shape::Box;
@@ -697,8 +695,8 @@ bool parse_object(Checker& ck, const json& v, const std::string& path, ObjectDes
       if (lo[a] > hi[a]) {
         return ck.fail(join_key(path, "max"),
                        std::string("must be >= min on every axis, got max.") + axis_name(a) +
-                           " = " + num_str(hi[a]) + " < min." + axis_name(a) + " = " +
-                           num_str(lo[a]));
+                           " = " + number_text(hi[a]) + " < min." + axis_name(a) + " = " +
+                           number_text(lo[a]));
       }
     }
     obj.center = (lo + hi) * 0.5;
@@ -717,10 +715,10 @@ bool parse_object(Checker& ck, const json& v, const std::string& path, ObjectDes
       return ck.fail(path, "dynamic objects need max_speed (world units per second)");
     }
     if (!ck.number(*speed, sp, &obj.max_speed)) return false;
-    if (!(obj.max_speed >= 0.0)) return ck.fail(sp, "must be >= 0, got " + num_str(obj.max_speed));
+    if (!(obj.max_speed >= 0.0)) return ck.fail(sp, "must be >= 0, got " + number_text(obj.max_speed));
     if (obj.max_speed > kMaxCoordinate) {
-      return ck.fail(sp, "must be at most " + num_str(kMaxCoordinate) + ", got " +
-                             num_str(obj.max_speed));
+      return ck.fail(sp, "must be at most " + number_text(kMaxCoordinate) + ", got " +
+                             number_text(obj.max_speed));
     }
   } else if (speed != v.end()) {
     return ck.fail(sp, "is only allowed with \"dynamic\": true");
@@ -754,9 +752,9 @@ bool parse_scene_dom(Checker& ck, const json& root, SceneDesc* out) {
   for (int a = 0; a < 3; ++a) {
     if (!(desc.bounds_min[a] < desc.bounds_max[a])) {
       return ck.fail("bounds.max", std::string("must be > min on every axis, got max.") +
-                                       axis_name(a) + " = " + num_str(desc.bounds_max[a]) +
+                                       axis_name(a) + " = " + number_text(desc.bounds_max[a]) +
                                        " <= min." + axis_name(a) + " = " +
-                                       num_str(desc.bounds_min[a]));
+                                       number_text(desc.bounds_min[a]));
     }
   }
 
@@ -775,8 +773,8 @@ bool parse_scene_dom(Checker& ck, const json& root, SceneDesc* out) {
                       "an integer >= 1 (voxels along the axis)")) {
         return false;
       }
-      if (d > kMaxGridPerAxis) {
-        return ck.fail(gp, "must be at most " + std::to_string(kMaxGridPerAxis) +
+      if (d > kMaxResolution) {
+        return ck.fail(gp, "must be at most " + std::to_string(kMaxResolution) +
                                " voxels per axis, got " + describe((*grid)[i]));
       }
       res[static_cast<glm::length_t>(i)] = static_cast<int>(d);
@@ -1072,6 +1070,9 @@ std::string result_to_json(std::size_t frame_index, const FrameResult& result) {
     count("ob_voxels_culled", s.ob_voxels_culled);
     count("ob_objects_culled", s.ob_objects_culled);
     count("ob_occluders", s.ob_occluders);
+    count("ob_pixels_written", s.ob_pixels_written);
+    count("cells_visited", s.cells_visited);
+    count("cells_hidden", s.cells_hidden);
   }
   out += "}}";
   return out;

@@ -12,7 +12,6 @@ namespace voxvis {
 
 using detail::finite3;
 using detail::max_abs;
-using detail::num;
 
 namespace {
 
@@ -31,7 +30,7 @@ Vec3 unit(const Vec3& v) {
 Status validate_camera(const Camera& c) {
   if (!finite3(c.eye)) return Status::Error("eye", "must be three finite numbers");
   if (max_abs(c.eye) > kMaxCoordinate)
-    return Status::Error("eye", "magnitude exceeds " + num(kMaxCoordinate));
+    return Status::Error("eye", "magnitude exceeds " + number_text(kMaxCoordinate));
   if (!finite3(c.dir)) return Status::Error("dir", "must be three finite numbers");
   if (!finite3(c.up)) return Status::Error("up", "must be three finite numbers");
   if (!(max_abs(c.dir) > 0.0)) return Status::Error("dir", "must not be the zero vector");
@@ -39,13 +38,13 @@ Status validate_camera(const Camera& c) {
   const double s = glm::length(glm::cross(unit(c.dir), unit(c.up)));
   if (!(s > 1e-9)) return Status::Error("up", "must not be parallel to dir");
   if (!std::isfinite(c.fov_y_deg) || !(c.fov_y_deg >= kMinFovDeg) || !(c.fov_y_deg < 180.0))
-    return Status::Error("fov_y_deg", "must be in [" + num(kMinFovDeg) + ", 180) degrees, got " + num(c.fov_y_deg));
+    return Status::Error("fov_y_deg", "must be in [" + number_text(kMinFovDeg) + ", 180) degrees, got " + number_text(c.fov_y_deg));
   if (!std::isfinite(c.aspect) || !(c.aspect >= 1.0 / kMaxAspect) || !(c.aspect <= kMaxAspect))
-    return Status::Error("aspect", "must be in [0.001, 1000], got " + num(c.aspect));
+    return Status::Error("aspect", "must be in [0.001, 1000], got " + number_text(c.aspect));
   if (!std::isfinite(c.near) || !(c.near > 0.0))
-    return Status::Error("near", "must be > 0, got " + num(c.near));
+    return Status::Error("near", "must be > 0, got " + number_text(c.near));
   if (!std::isfinite(c.far) || !(c.far > c.near))
-    return Status::Error("far", "must be finite and > near, got " + num(c.far));
+    return Status::Error("far", "must be finite and > near, got " + number_text(c.far));
   return Status::Ok();
 }
 

@@ -18,7 +18,4 @@ inline double max_abs(const Vec3& v) {
   return std::max(std::fabs(v.x), std::max(std::fabs(v.y), std::fabs(v.z)));
 }
 
-/// A double as it round-trips, for error messages (voxvis::number_text).
-inline std::string num(double v) { return number_text(v); }
-
 }  // namespace voxvis::detail

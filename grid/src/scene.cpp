@@ -20,7 +20,6 @@ using detail::Obj;
 using detail::VoxBox;
 using detail::finite3;
 using detail::max_abs;
-using detail::num;
 
 namespace {
 
@@ -54,16 +53,16 @@ Status validate_desc(const SceneDesc& d, const SceneOptions& opt) {
   if (!finite3(d.bounds_min) || !finite3(d.bounds_max))
     return Status::Error("bounds", "must be finite numbers");
   if (max_abs(d.bounds_min) > kMaxCoordinate || max_abs(d.bounds_max) > kMaxCoordinate)
-    return Status::Error("bounds", "magnitude exceeds " + num(kMaxCoordinate));
+    return Status::Error("bounds", "magnitude exceeds " + number_text(kMaxCoordinate));
   for (int a = 0; a < 3; ++a) {
     if (!(d.bounds_min[a] < d.bounds_max[a]))
       return Status::Error("bounds", std::string("min must be < max on every axis; axis ") +
-                                         "xyz"[a] + " has " + num(d.bounds_min[a]) +
-                                         " >= " + num(d.bounds_max[a]));
+                                         "xyz"[a] + " has " + number_text(d.bounds_min[a]) +
+                                         " >= " + number_text(d.bounds_max[a]));
     const double extent = d.bounds_max[a] - d.bounds_min[a];
     if (!(extent >= kMinExtent))
-      return Status::Error("bounds", std::string("extent on axis ") + "xyz"[a] + " is " + num(extent) +
-                                         "; it must be at least " + num(kMinExtent) + " world units");
+      return Status::Error("bounds", std::string("extent on axis ") + "xyz"[a] + " is " + number_text(extent) +
+                                         "; it must be at least " + number_text(kMinExtent) + " world units");
     if (!(extent > 64 * kUlp * std::fmax(std::fabs(d.bounds_min[a]), std::fabs(d.bounds_max[a]))))
       return Status::Error("bounds", std::string("extent on axis ") + "xyz"[a] +
                                          " is too small to be resolved at this offset");
@@ -86,7 +85,7 @@ Status validate_desc(const SceneDesc& d, const SceneOptions& opt) {
                                        " voxels exceeds the limit of " +
                                        std::to_string(opt.max_voxels));
   }
-  if (!(opt.tbv_period == 0.0 || opt.tbv_period >= 1e-3) || !std::isfinite(opt.tbv_period))
+  if (!(opt.tbv_period == 0.0 || opt.tbv_period >= kMinTbvPeriod) || !std::isfinite(opt.tbv_period))
     return Status::Error("tbv_period", "must be 0 (per object) or a finite number of seconds >= 0.001");
   if (!(opt.tbv_voxels > 0.0) || !std::isfinite(opt.tbv_voxels))
     return Status::Error("tbv_voxels", "must be finite and > 0");
@@ -113,12 +112,12 @@ Status validate_desc(const SceneDesc& d, const SceneOptions& opt) {
                                                    std::to_string(it->second) + "])");
     if (!finite3(o.center)) return Status::Error(obj_field(i, "center"), "must be finite");
     if (max_abs(o.center) > kMaxCoordinate)
-      return Status::Error(obj_field(i, "center"), "magnitude exceeds " + num(kMaxCoordinate));
+      return Status::Error(obj_field(i, "center"), "magnitude exceeds " + number_text(kMaxCoordinate));
     if (o.shape == Shape::Sphere) {
       if (!std::isfinite(o.radius) || !(o.radius > 0.0))
-        return Status::Error(obj_field(i, "radius"), "must be > 0, got " + num(o.radius));
+        return Status::Error(obj_field(i, "radius"), "must be > 0, got " + number_text(o.radius));
       if (o.radius > kMaxCoordinate)
-        return Status::Error(obj_field(i, "radius"), "exceeds " + num(kMaxCoordinate));
+        return Status::Error(obj_field(i, "radius"), "exceeds " + number_text(kMaxCoordinate));
     } else {
       if (!finite3(o.half_extent))
         return Status::Error(obj_field(i, "max"), "box extents must be finite");
@@ -126,11 +125,11 @@ Status validate_desc(const SceneDesc& d, const SceneOptions& opt) {
         if (!(o.half_extent[a] >= 0.0))
           return Status::Error(obj_field(i, "min"), "box min must be <= max on every axis");
       if (max_abs(o.half_extent) > kMaxCoordinate)
-        return Status::Error(obj_field(i, "max"), "box extent exceeds " + num(kMaxCoordinate));
+        return Status::Error(obj_field(i, "max"), "box extent exceeds " + number_text(kMaxCoordinate));
     }
     if (o.dynamic && (!std::isfinite(o.max_speed) || !(o.max_speed >= 0.0)))
       return Status::Error(obj_field(i, "max_speed"),
-                           "must be finite and >= 0, got " + num(o.max_speed));
+                           "must be finite and >= 0, got " + number_text(o.max_speed));
   }
   return Status::Ok();
 }
@@ -150,6 +149,7 @@ void Scratch::Impl::begin(std::size_t voxels, std::size_t objects, std::size_t b
   // A frame that ended early (an error) may have left its seen record.
   for (std::uint32_t b : seen_list) seen_vox[b] = 0;
   seen_list.clear();
+  seen_cells.clear();
   if (seen_vox.size() < bricks) seen_vox.resize(bricks, 0);
   if (stamp.size() < voxels) stamp.resize(voxels, 0);
   if (obj_mark.size() < objects) obj_mark.resize(objects, 0);
@@ -439,6 +439,7 @@ void Scene::Impl::brick_add(const VoxBox& vb, std::uint32_t key, std::uint32_t g
     br.entries.push_back({key, gen});
     ++br.live;
     if (level > 1) ++coarse_dyn_live;
+    dyn_count_add(level, c, 1);
   });
 }
 
@@ -446,7 +447,20 @@ void Scene::Impl::brick_remove(const VoxBox& vb) {
   dyn_cells_of(pyr, vb, [&](int level, const glm::ivec3& c) {
     --dyn_cell(level, c).live;
     if (level > 1) --coarse_dyn_live;
+    dyn_count_add(level, c, -1);
   });
+}
+
+void Scene::Impl::dyn_count_add(int level, glm::ivec3 c, int delta) {
+  for (int l = level; l < pyr.levels; ++l, c >>= detail::kCellShift) {
+    std::uint32_t& n = dyn_count[static_cast<std::size_t>(l)][pyr.index(l, c)];
+    const bool was = n > 0;
+    n = static_cast<std::uint32_t>(static_cast<std::int64_t>(n) + delta);
+    if (was != (n > 0) && l + 1 < pyr.levels) {
+      const std::uint64_t bit = std::uint64_t{1} << ((c.x & 3) | (c.y & 3) << 2 | (c.z & 3) << 4);
+      dyn_mask[static_cast<std::size_t>(l) + 1][pyr.index(l + 1, c >> detail::kCellShift)] ^= bit;
+    }
+  }
 }
 
 void Scene::Impl::list_add(std::vector<std::uint32_t>& list, std::int32_t& pos, std::uint32_t slot) {
@@ -517,7 +531,7 @@ double Scene::Impl::initial_period(const Obj& o) const {
   if (options.tbv_period > 0.0) return options.tbv_period;
   if (!(o.max_speed > 0.0)) return options.tbv_max_period;
   const double vmin = std::fmin(spec.voxel_size.x, std::fmin(spec.voxel_size.y, spec.voxel_size.z));
-  return std::clamp(options.tbv_voxels * vmin / o.max_speed, 1e-3, max_period(o));
+  return std::clamp(options.tbv_voxels * vmin / o.max_speed, kMinTbvPeriod, max_period(o));
 }
 
 double Scene::Impl::max_period(const Obj& o) const {
@@ -527,7 +541,7 @@ double Scene::Impl::max_period(const Obj& o) const {
   // fall only linearly with its period: beyond a few voxels of growth,
   // longer periods cost more than they save.
   const double vmin = std::fmin(spec.voxel_size.x, std::fmin(spec.voxel_size.y, spec.voxel_size.z));
-  return std::clamp(options.tbv_max_voxels * vmin / o.max_speed, 1e-3, options.tbv_max_period);
+  return std::clamp(options.tbv_max_voxels * vmin / o.max_speed, kMinTbvPeriod, options.tbv_max_period);
 }
 
 double Scene::Impl::tbv_box(std::uint32_t slot, Vec3* lo_out, Vec3* hi_out, bool* cut) const {
@@ -566,7 +580,7 @@ double Scene::Impl::tbv_box(std::uint32_t slot, Vec3* lo_out, Vec3* hi_out, bool
   double room = unseen_growth(o, *lo_out, *hi_out, &room_brick);
   if (room_brick >= floor) room = room_brick;
   const double cut_period = grow > 0.0 ? period * (room / grow) : 0.0;
-  if (room < grow && room >= floor && cut_period >= 1e-3) {
+  if (room < grow && room >= floor && cut_period >= kMinTbvPeriod) {
     if (cut) *cut = true;
     *lo_out = glm::min(lo, glm::max(lo - room, spec.bounds_min));
     *hi_out = glm::max(hi, glm::min(hi + room, spec.bounds_max));
@@ -611,10 +625,7 @@ double Scene::Impl::unseen_growth(const Obj& o, const Vec3& lo, const Vec3& hi, 
         std::uint64_t m = 0;
         for (int z = l.lo.z; z <= l.hi.z; ++z)
           for (int y = l.lo.y; y <= l.hi.y; ++y)
-            for (int x = l.lo.x; x <= l.hi.x; ++x) {
-              const auto b = static_cast<std::size_t>(x + std::int64_t{bricks_res.x} * (y + std::int64_t{bricks_res.y} * z));
-              if (seen_recently(b)) m |= seen_mask[b];
-            }
+            for (int x = l.lo.x; x <= l.hi.x; ++x) m |= brick_seen(glm::ivec3(x, y, z));
         if (m == 0) {
           (side ? r.hi[a] : r.lo[a]) = c;
           grew = true;
@@ -634,7 +645,22 @@ double Scene::Impl::unseen_growth(const Obj& o, const Vec3& lo, const Vec3& hi, 
   return room;
 }
 
+std::uint64_t Scene::Impl::brick_seen(const glm::ivec3& b) const {
+  const std::size_t i = pyr.index(1, b);
+  std::uint64_t m = seen_recently(i) ? seen_mask[i] : 0;
+  for (int l = 2; l < pyr.levels && m != ~std::uint64_t{0}; ++l) {
+    const glm::ivec3 c = b >> (detail::kCellShift * (l - 1));
+    if (time - cell_seen_at[static_cast<std::size_t>(l)][pyr.index(l, c)] <= options.tbv_seen_memory) m = ~std::uint64_t{0};
+  }
+  return m;
+}
+
 void Scene::Impl::mark_seen(Scratch::Impl& w, double t) {
+  for (const auto& [level, cell] : w.seen_cells) {
+    cell_seen_at[level][cell] = t;
+    last_seen_at = t;
+  }
+  w.seen_cells.clear();
   for (std::uint32_t b : w.seen_list) {
     // A brick not seen within the memory forgets its old voxels.
     seen_mask[b] = seen_recently(b) ? seen_mask[b] | w.seen_vox[b] : w.seen_vox[b];
@@ -763,7 +789,7 @@ Status validate_time(const std::string& field, double t) {
   char range[64];
   std::snprintf(range, sizeof range, "[%g, %g]", -kMaxSceneTime, kMaxSceneTime);
   return Status::Error(field, std::string("must be a finite time in seconds within ") + range +
-                                  ", got " + num(t) +
+                                  ", got " + number_text(t) +
                                   " (milliseconds or microseconds since 1970 are out of range)");
 }
 
@@ -958,9 +984,15 @@ Status scene_cost(const Scene::Impl& s, const std::array<std::uint64_t, detail::
   // offsets and entries (4 each); per brick its dynamic list head, seen
   // time and mask; per coarser cell a list head; 16 bytes a dynamic entry
   // (the lists keep up to twice their live entries); each object's state
-  // and index entry.
+  // and index entry; with the buffer on, the per-brick lists (at most the
+  // voxels' own entries and one box per brick); per cell of levels >= 1 its static mask (8), with
+  // dynamic objects its dynamic count and mask (12) and, from level 2, the
+  // time it was last seen whole (8).
+  const std::uint64_t cells = s.cell_base[static_cast<std::size_t>(s.pyr.levels)];
   cost->bytes = nvox * (1 + (buffer ? 4 : 0)) + 4 * (offsets + entries) + boxes * sizeof(VoxBox) +
-                bricks * (sizeof(detail::Brick) + 16) + coarse * sizeof(detail::Brick) + 16 * dyn_entries +
+                bricks * (sizeof(detail::Brick) + 16) + coarse * (sizeof(detail::Brick) + 8) + 16 * dyn_entries +
+                8 * cells + (bricks > 0 ? 12 * cells : 0) +
+                (buffer ? 4 * (per_level[0] + 2 * (s.pyr.cells(1) + 1)) + 4 * boxes : 0) +
                 s.objs.size() * (sizeof(Obj) + 48) + (1u << 16);
   cost->scratch_bytes = nvox + 8 * s.objs.size() + 4 * boxes + 8 * bricks + 4 * s.cell_base[static_cast<std::size_t>(s.pyr.levels)];
   cost->work = meter.steps() + nvox * 2;
@@ -1072,6 +1104,72 @@ Status build_static_lists(Scene::Impl& s, BuildMeter& meter, const LevelCounts& 
   return Status::Ok();
 }
 
+/// The static masks, bottom up (Scene::Impl::static_mask).
+void build_static_masks(Scene::Impl& s) {
+  for (int l = 1; l < s.pyr.levels; ++l) s.static_mask[static_cast<std::size_t>(l)].assign(s.pyr.cells(l), 0);
+  auto bit = [](const glm::ivec3& c) { return std::uint64_t{1} << ((c.x & 3) | (c.y & 3) << 2 | (c.z & 3) << 4); };
+  for (int z = 0; z < s.res.z; ++z)
+    for (int y = 0; y < s.res.y; ++y)
+      for (int x = 0; x < s.res.x; ++x)
+        if (s.vflags[static_cast<std::size_t>(s.index(x, y, z))] & (Scene::Impl::kStaticIds | Scene::Impl::kStaticOpaque))
+          s.static_mask[1][s.pyr.index(1, glm::ivec3(x, y, z) >> detail::kCellShift)] |= bit(glm::ivec3(x, y, z));
+  for (int l = 1; l + 1 < s.pyr.levels; ++l) {
+    const detail::IdLists& lists = s.static_lists[static_cast<std::size_t>(l)];
+    const glm::ivec3 r = s.pyr.res[static_cast<std::size_t>(l)];
+    for (int z = 0; z < r.z; ++z)
+      for (int y = 0; y < r.y; ++y)
+        for (int x = 0; x < r.x; ++x) {
+          const glm::ivec3 c(x, y, z);
+          const std::size_t i = s.pyr.index(l, c);
+          const bool own = lists.any() && lists.offsets[i + 1] > lists.offsets[i];
+          if (own || s.static_mask[static_cast<std::size_t>(l)][i] != 0)
+            s.static_mask[static_cast<std::size_t>(l) + 1][s.pyr.index(l + 1, c >> detail::kCellShift)] |= bit(c);
+        }
+  }
+}
+
+/// The per-brick lists of the cell traversal (Scene::Impl::brick_static,
+/// brick_boxes), from the voxels' own lists and opaque owners.
+void build_brick_lists(Scene::Impl& s) {
+  const std::size_t bricks = s.pyr.cells(1);
+  const detail::IdLists& own = s.static_lists[0];
+  std::vector<std::uint32_t> obj_mark(s.objs.size(), ~0u), box_mark(s.opaque_boxes.size(), ~0u);
+  detail::IdLists& objs = s.brick_static;
+  detail::IdLists& boxes = s.brick_boxes;
+  objs.offsets.assign(1, 0);
+  boxes.offsets.assign(1, 0);
+  objs.ids.clear();
+  boxes.ids.clear();
+  for (std::size_t b = 0; b < bricks; ++b) {
+    std::uint64_t m = s.static_mask[1][b];
+    const glm::ivec3 c(static_cast<int>(b % static_cast<std::size_t>(s.pyr.res[1].x)),
+                       static_cast<int>(b / static_cast<std::size_t>(s.pyr.res[1].x) % static_cast<std::size_t>(s.pyr.res[1].y)),
+                       static_cast<int>(b / (static_cast<std::size_t>(s.pyr.res[1].x) * static_cast<std::size_t>(s.pyr.res[1].y))));
+    const glm::ivec3 o = c << detail::kCellShift;
+    while (m != 0) {
+      const int bit = __builtin_ctzll(m);
+      m &= m - 1;
+      const auto idx = static_cast<std::size_t>(s.index(o.x + (bit & 3), o.y + (bit >> 2 & 3), o.z + (bit >> 4)));
+      const auto tag = static_cast<std::uint32_t>(b);
+      if (s.vflags[idx] & Scene::Impl::kStaticIds)
+        for (const std::uint32_t* p = own.begin(idx); p != own.end(idx); ++p)
+          if (obj_mark[*p] != tag) {
+            obj_mark[*p] = tag;
+            objs.ids.push_back(*p);
+          }
+      if (!s.opaque_owner.empty() && (s.vflags[idx] & Scene::Impl::kStaticOpaque)) {
+        const std::uint32_t box = s.opaque_owner[idx];
+        if (box != detail::kNoBox && box_mark[box] != tag) {
+          box_mark[box] = tag;
+          boxes.ids.push_back(box);
+        }
+      }
+    }
+    objs.offsets.push_back(static_cast<std::uint32_t>(objs.ids.size()));
+    boxes.offsets.push_back(static_cast<std::uint32_t>(boxes.ids.size()));
+  }
+}
+
 }  // namespace
 
 Status Scene::estimate(const SceneDesc& desc, const SceneOptions& options, SceneCost* out,
@@ -1126,13 +1224,21 @@ Status Scene::create(const SceneDesc& desc, const SceneOptions& options, std::un
   if (s.options.occlusion_buffer > 0)
     detail::cover_with_boxes(s.res, s.vflags, Impl::kStaticOpaque, kOpaqueBoxSide, &s.opaque_boxes,
                              &s.opaque_owner);
+  build_static_masks(s);
+  if (s.options.occlusion_buffer > 0) build_brick_lists(s);
 
   if (s.dynamic_count > 0) {
     s.bricks_res = s.pyr.res[1];
     s.bricks.resize(s.pyr.cells(1));
     for (int l = 2; l < s.pyr.levels; ++l) s.coarse_dyn[static_cast<std::size_t>(l)].resize(s.pyr.cells(l));
+    for (int l = 1; l < s.pyr.levels; ++l) {
+      s.dyn_count[static_cast<std::size_t>(l)].assign(s.pyr.cells(l), 0);
+      s.dyn_mask[static_cast<std::size_t>(l)].assign(s.pyr.cells(l), 0);
+    }
     s.seen_at.assign(s.bricks.size(), -std::numeric_limits<double>::infinity());
     s.seen_mask.assign(s.bricks.size(), 0);
+    for (int l = 2; l < s.pyr.levels; ++l)
+      s.cell_seen_at[static_cast<std::size_t>(l)].assign(s.pyr.cells(l), -std::numeric_limits<double>::infinity());
     // Until a viewer has looked, every object may be visible: discretize all
     // dynamic objects now; those no viewer claims get TBVs after a frame.
     for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
@@ -1189,7 +1295,7 @@ Status Scene::apply_moves(double t, std::span<const Move> moves, MoveReport* rep
   if (Status st = validate_time("t", t); !st) return st;
   if (clock == Clock::Latest && s.time_set) t = std::fmax(t, s.time);
   if (s.time_set && t < s.time)
-    return Status::Error("t", "time goes backwards: " + num(t) + " < " + num(s.time));
+    return Status::Error("t", "time goes backwards: " + number_text(t) + " < " + number_text(s.time));
   for (std::size_t i = 0; i < moves.size(); ++i) {
     const Move& m = moves[i];
     const std::string f = "moves[" + std::to_string(i) + "]";
@@ -1199,7 +1305,7 @@ Status Scene::apply_moves(double t, std::span<const Move> moves, MoveReport* rep
       return Status::Error(f + ".id", "object " + std::to_string(m.id) + " is static and cannot move");
     if (!finite3(m.center)) return Status::Error(f + ".center", "must be finite");
     if (max_abs(m.center) > kMaxCoordinate)
-      return Status::Error(f + ".center", "magnitude exceeds " + num(kMaxCoordinate));
+      return Status::Error(f + ".center", "magnitude exceeds " + number_text(kMaxCoordinate));
   }
   s.time = t;
   s.time_set = true;

@@ -21,6 +21,7 @@
 // tested against the frustum each frame, since no voxel stands for them.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <limits>
@@ -28,6 +29,7 @@
 #include <mutex>
 #include <shared_mutex>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include "cells.h"
@@ -176,6 +178,9 @@ struct Scratch::Impl {
   /// Scenes with dynamic objects only; emptied by Scene::Impl::mark_seen.
   std::vector<std::uint64_t> seen_vox;
   std::vector<std::uint32_t> seen_list;
+  /// Whole cells of levels >= 2 this frame saw (empty space in view), as
+  /// (level, cell index): recorded once per cell instead of per brick.
+  std::vector<std::pair<std::uint8_t, std::uint32_t>> seen_cells;
   /// Per cell of levels 1 and up (Scene::Impl::cell_base): frame in which
   /// its static objects were collected.
   std::vector<std::uint32_t> cell_seen;
@@ -219,6 +224,17 @@ struct Scene::Impl {
   /// Where each level's cells start in a flat array of all cells of levels
   /// 1 and up (Scratch::Impl::cell_seen).
   std::array<std::size_t, detail::kMaxLevels + 1> cell_base{};
+  /// Per level >= 1, per cell, a bit per child (x + 4y + 16z within the
+  /// cell) that holds static content: at level 1 a voxel with static
+  /// objects in its own list, or static opaque; above, a child with a bit
+  /// set or static objects stored in it. Empty space is skipped by them.
+  std::array<std::vector<std::uint64_t>, detail::kMaxLevels> static_mask;
+  /// With the occlusion buffer on, per brick: the static objects in its
+  /// voxels' own lists (static_lists[0]) and the opaque boxes owning its
+  /// opaque voxels, each once, so that the cell traversal reads a brick's
+  /// content as two short lists instead of voxel by voxel.
+  detail::IdLists brick_static;
+  detail::IdLists brick_boxes;
   /// With the occlusion buffer on: the static opaque voxels as overlapping
   /// boxes, and each opaque voxel's owner box (opaque_boxes.h).
   std::vector<detail::VoxBox> opaque_boxes;
@@ -232,12 +248,20 @@ struct Scene::Impl {
   std::array<std::vector<detail::Brick>, detail::kMaxLevels> coarse_dyn;
   /// Live entries in coarse_dyn, all levels: readers skip those levels at 0.
   std::uint64_t coarse_dyn_live = 0;
+  /// Per level >= 1, per cell: live dynamic entries in it and in the cells
+  /// below it, and a bit per child whose count is not 0 (as static_mask).
+  std::array<std::vector<std::uint32_t>, detail::kMaxLevels> dyn_count;
+  std::array<std::vector<std::uint64_t>, detail::kMaxLevels> dyn_mask;
   /// Per brick: the latest scene time a frame saw a voxel of it (reached it
   /// and did not prove it hidden), -inf if never, and which voxels frames
   /// saw since it was last forgotten (Scratch::Impl::seen_vox). TBVs keep
   /// clear of voxels seen within SceneOptions::tbv_seen_memory.
   std::vector<double> seen_at;
   std::vector<std::uint64_t> seen_mask;
+  /// Per level >= 2, per cell: the latest scene time a frame saw the whole
+  /// cell (Scratch::Impl::seen_cells); a brick inside such a cell counts as
+  /// wholly seen then (brick_seen).
+  std::array<std::vector<double>, detail::kMaxLevels> cell_seen_at;
   double last_seen_at = -std::numeric_limits<double>::infinity();  ///< Latest of seen_at.
 
   // Beyond the grid.
@@ -317,6 +341,9 @@ struct Scene::Impl {
   void brick_add(const detail::VoxBox& vb, std::uint32_t key, std::uint32_t gen);
   /// Lowers the live count of the same cells brick_add(vb) wrote.
   void brick_remove(const detail::VoxBox& vb);
+  /// Adds `delta` live entries to cell c of `level` and the counts above it,
+  /// flipping the parents' dyn_mask bits where a count leaves or reaches 0.
+  void dyn_count_add(int level, glm::ivec3 c, int delta);
   /// The dynamic cell (level >= 1) of an entry.
   detail::Brick& dyn_cell(int level, const glm::ivec3& c) {
     return level == 1 ? bricks[pyr.index(1, c)] : coarse_dyn[static_cast<std::size_t>(level)][pyr.index(level, c)];
@@ -346,6 +373,8 @@ struct Scene::Impl {
   bool seen_recently(std::size_t brick) const {
     return time - seen_at[brick] <= options.tbv_seen_memory;
   }
+  /// The voxels of brick b (bricks_res coordinates) seen within the memory.
+  std::uint64_t brick_seen(const glm::ivec3& b) const;
   void reveal(std::uint32_t slot);
   /// Whether apply_queue(st, tbvs) has work. Needs `book`.
   bool queued(bool tbvs) const { return !queued_reveals.empty() || (tbvs && !unclaimed.empty()); }

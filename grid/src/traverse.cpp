@@ -1,5 +1,6 @@
-// traverse.cpp — one frame: TBV expiry, the chess-metric front-to-back
-// traversal with shell-by-shell occlusion, and the PVS bookkeeping.
+// traverse.cpp — the traversal with the occlusion buffer off: the paper's
+// chess-metric shells of voxels front to back, with shell-by-shell occlusion
+// (traverse.h; the frame around it is frame.cpp).
 //
 // Occlusion (paper 5.3, done without cap polygons). Let C_k be the cube of
 // voxels at chess distance <= k from the eye's voxel E; the eye is inside it.
@@ -27,10 +28,8 @@
 
 #include <glm/geometric.hpp>
 
-#include "frustum.h"
 #include "numeric.h"
-#include "opaque_boxes.h"
-#include "scene_impl.h"
+#include "traverse.h"
 
 namespace voxvis {
 
@@ -47,12 +46,6 @@ constexpr std::uint32_t kBlocked = 2;
 /// within this many seconds of the frame along with the expired ones.
 constexpr double kRenewAhead = 0.1;
 constexpr double kUlp = std::numeric_limits<double>::epsilon();
-
-/// Whether the buffer proves an object (at the position the scene holds)
-/// hidden: a ball by its own outline, a box by itself.
-bool ob_hides_object(const detail::OcclusionBuffer& ob, const Obj& o) {
-  return o.shape == Shape::Sphere ? ob.hides_sphere(o.center, o.radius) : ob.hides_world(o.box_lo(), o.box_hi());
-}
 
 /// Inclusive box of local voxel coordinates.
 struct IBox {
@@ -85,32 +78,21 @@ struct ExitTable {
 };
 
 
-/// Beyond 2^40 voxels from the grid, shell arithmetic in doubles would lose
-/// the precision the conservative tests need.
-bool eye_too_far(const Vec3& eye_grid) { return max_abs(eye_grid) > 0x1p40; }
-
-/// Tests whether any part of the box [lo, hi] beyond the grid box may lie in
-/// the frustum. Parts inside the grid are the voxels' business.
-bool outside_part_visible(const WorldFrustum& wf, const GridSpec& g, Vec3 lo, Vec3 hi) {
-  for (int a = 0; a < 3; ++a) {
-    if (lo[a] < g.bounds_min[a]) {
-      Vec3 h = hi;
-      h[a] = std::fmin(hi[a], g.bounds_min[a]);
-      if (wf.may_intersect_box(lo, h)) return true;
-    }
-    if (hi[a] > g.bounds_max[a]) {
-      Vec3 l = lo;
-      l[a] = std::fmax(lo[a], g.bounds_max[a]);
-      if (wf.may_intersect_box(l, hi)) return true;
-    }
-  }
-  return false;
-}
-
 class Traversal {
  public:
-  Traversal(const Scene::Impl& s, Scratch::Impl& w, const WorldFrustum& wf, FrameStats& st)
-      : s_(s), w_(w), wf_(wf), st_(st), tag_(static_cast<std::uint32_t>(w.stamp_tag << 2)) {}
+  Traversal(const Scene::Impl& s, Scratch::Impl& w, const WorldFrustum& wf, FrameStats& st,
+            const detail::FrameGeometry& g, detail::Collector& col)
+      : s_(s), w_(w), wf_(wf), st_(st), col_(col), tag_(static_cast<std::uint32_t>(w.stamp_tag << 2)) {
+    for (int a = 0; a < 3; ++a) {
+      E_[a] = g.E[a];
+      glo_[a] = g.glo[a];
+      ghi_[a] = g.ghi[a];
+      stride_[a] = g.stride[a];
+    }
+    lf_ = g.lf;
+    tol_ = g.tol;
+    depth_tol_ = g.depth_tol;
+  }
 
   /// Runs the traversal; adds PVS slots to w.pvs, and the slots of the TBVs
   /// it reaches to w.deferred. It only reads the scene, so frames of
@@ -118,123 +100,12 @@ class Traversal {
   void run();
 
  private:
-  /// Puts an object reached through a voxel into the PVS unless its box
-  /// misses the frustum (a voxel in view can hold objects that are not).
-  void add(std::uint32_t slot) {
-    std::uint32_t& seen = w_.obj_seen[slot];
-    if (seen == w_.frame) return;
-    seen = w_.frame;
-    const Obj& o = s_.objs[slot];
-    if (!wf_.may_intersect_box(o.box_lo(), o.box_hi())) return;
-    if (!o.dynamic && own_voxels_hidden(o)) {
-      ++st_.front_objects_culled;
-      return;
-    }
-    detail::OcclusionBuffer& ob = w_.ob;
-    if (ob.on()) {
-      if (ob_hides_object(ob, o)) {
-        ++st_.ob_objects_culled;
-        return;
-      }
-      // Every object the frame finds is an occluder, at the position the
-      // scene has for it (the one it is visible at).
-      const bool wrote = o.shape == Shape::Sphere ? ob.render_sphere(o.center, o.radius)
-                                                  : ob.render_box(o.box_lo(), o.box_hi());
-      if (wrote) ++st_.ob_occluders;
-    }
-    w_.obj_mark[slot] = w_.frame;
-    w_.pvs.push_back(slot);
-  }
-  /// Renders the opaque box owning static opaque voxel idx, once a frame
-  /// (opaque_boxes.h): the voxel is reached, so the box may be in view.
-  void render_opaque_box(std::int64_t idx) {
-    if (s_.opaque_owner.empty()) return;
-    const std::uint32_t b = s_.opaque_owner[static_cast<std::size_t>(idx)];
-    if (b == detail::kNoBox || w_.box_seen[b] == w_.frame) return;
-    w_.box_seen[b] = w_.frame;
-    const detail::VoxBox& vb = s_.opaque_boxes[b];
-    const GridSpec& g = s_.spec;
-    const Vec3 lo = g.bounds_min + Vec3(vb.lo) * g.voxel_size;
-    const Vec3 hi = g.bounds_min + Vec3(vb.hi + 1) * g.voxel_size;
-    if (w_.ob.render_box(lo, hi)) ++st_.ob_occluders;
-  }
-  /// Whether the occlusion buffer proves every point of local voxel v hidden.
-  bool ob_hides_voxel(const std::int64_t v[3]) const {
-    const Vec3 rel{(static_cast<double>(v[0]) - lf_.e.x) * vs_.x, (static_cast<double>(v[1]) - lf_.e.y) * vs_.y,
-                   (static_cast<double>(v[2]) - lf_.e.z) * vs_.z};
-    return w_.ob.hides(rel, vs_, depth_tol_);
-  }
   bool in_grid(const std::int64_t v[3]) const {
     return v[0] >= glo_[0] && v[0] <= ghi_[0] && v[1] >= glo_[1] && v[1] <= ghi_[1] &&
            v[2] >= glo_[2] && v[2] <= ghi_[2];
   }
   std::int64_t gindex(const std::int64_t v[3]) const {
     return (E_[0] + v[0]) + stride_[1] * (E_[1] + v[1]) + stride_[2] * (E_[2] + v[2]);
-  }
-  /// Whether the static opaque voxels beside local voxel v on the eye's side
-  /// hide it (idx: its grid index). Every ray from the eye first meets the
-  /// closed voxel at a point q; but for a set of rays of measure zero (those
-  /// meeting it first on an edge or a corner), q lies inside a face towards
-  /// the eye, across the axis a where the eye lies outside v's slab, and the
-  /// ray's points just before q lie in the face neighbour v + step_a. When
-  /// those neighbours are all static opaque and wholly beyond the near
-  /// plane, every such ray is inside an object strictly before q, so no
-  /// point of v is the first hit on a set of rays of positive measure: v
-  /// holds nothing visible (docs/design.md, "What visible means"). This
-  /// reaches what the shells' exit rule cannot: a voxel just under a surface
-  /// seen at a grazing angle, whose rays come through neighbours of its own
-  /// shell.
-  bool front_blocked(const std::int64_t v[3], std::int64_t idx) const {
-    int step[3];
-    for (int a = 0; a < 3; ++a) {
-      if (v[a] != 0) {
-        // Towards the eye. A rounding that puts the true eye in v's slab
-        // only asks for more neighbours than needed.
-        step[a] = v[a] > 0 ? -1 : 1;
-      } else if (lf_.e[a] >= tol_ && lf_.e[a] <= 1.0 - tol_) {
-        step[a] = 0;  // The eye lies in v's slab along a.
-      } else {
-        return false;  // Too near a face of its voxel to tell.
-      }
-    }
-    if (step[0] == 0 && step[1] == 0 && step[2] == 0) return false;  // The eye's voxel.
-    const std::uint8_t* flags = s_.vflags.data();
-    for (int k = 1; k < 8; k <<= 1) {  // The face neighbours: one axis each.
-      std::int64_t u[3];
-      std::int64_t ui = idx;
-      bool skip = false;
-      for (int a = 0; a < 3; ++a) {
-        const int da = (k >> a) & 1 ? step[a] : 0;
-        if ((k >> a) & 1 && step[a] == 0) skip = true;
-        u[a] = v[a] + da;
-        ui += da * stride_[a];
-      }
-      if (skip) continue;
-      if (!in_grid(u) || !(flags[static_cast<std::size_t>(ui)] & Scene::Impl::kStaticOpaque)) return false;
-      const Vec3 lo{static_cast<double>(u[0]), static_cast<double>(u[1]), static_cast<double>(u[2])};
-      if (!(lf_.depth_min(lo) >= lf_.near + depth_tol_)) return false;
-    }
-    return true;
-  }
-  /// Whether every voxel holding static object o is hidden by its front
-  /// neighbours (front_blocked): then no point of o is a first hit, though
-  /// it touches voxels in view (a block just under the ground touches the
-  /// air above it at its edges). Small objects only: the test is per voxel.
-  bool own_voxels_hidden(const Obj& o) const {
-    detail::VoxBox vb;
-    if (!s_.own_voxels(o, &vb)) return false;
-    const glm::ivec3 n = vb.hi - vb.lo + 1;
-    if (n.x * n.y * n.z > 8) return false;
-    std::int64_t v[3];
-    for (int z = vb.lo.z; z <= vb.hi.z; ++z)
-      for (int y = vb.lo.y; y <= vb.hi.y; ++y)
-        for (int x = vb.lo.x; x <= vb.hi.x; ++x) {
-          v[0] = x - E_[0];
-          v[1] = y - E_[1];
-          v[2] = z - E_[2];
-          if (!front_blocked(v, gindex(v))) return false;
-        }
-    return true;
   }
   /// Status of a voxel of the previous shell: true when it blocks.
   bool blocks(const std::int64_t u[3]) const {
@@ -264,12 +135,12 @@ class Traversal {
   void visit_row(int face, int a, int b, int d, std::int64_t la, std::int64_t vd, Range row,
                  std::int64_t m);
   void collect(std::int64_t idx, const std::int64_t v[3], std::uint8_t flags);
-  void reveal_in_frame(std::uint32_t slot);
 
   const Scene::Impl& s_;
   Scratch::Impl& w_;
   const WorldFrustum& wf_;
   FrameStats& st_;
+  detail::Collector& col_;
   const std::uint32_t tag_;
 
   LocalFrustum lf_;
@@ -279,9 +150,7 @@ class Traversal {
   bool eye_inside_ = false;
   double tol_ = 0.0;        ///< Local grid units.
   double depth_tol_ = 0.0;  ///< World units.
-  Vec3 vs_{1.0};            ///< Voxel size, world units.
-  bool ob_on_ = false;
-  bool deep_ = false;  ///< SceneOptions::deep_shells, buffer off.
+  bool deep_ = false;  ///< SceneOptions::deep_shells.
   bool has_dyn_ = false;
   ExitTable prev_, half_;  ///< Exits on shell m-1 and on shell m/2.
   IBox face_live_[6]{};
@@ -466,31 +335,11 @@ Range Traversal::row_in_pyramid(int a, std::int64_t la, int b, int d, std::int64
   return Range{static_cast<std::int64_t>(lo), static_cast<std::int64_t>(hi)};
 }
 
-void Traversal::reveal_in_frame(std::uint32_t slot) {
-  // A TBV reached as not occluded may hold the object anywhere in view, but
-  // the object itself is where it was last reported: it goes into the PVS
-  // whenever its box meets the frustum, with no occlusion test, and the TBV
-  // is dropped after the traversal. Both only add to the PVS (the object's own
-  // voxels do not occlude in this frame), so deferring keeps the frame
-  // conservative while the traversal stays read-only.
-  if (w_.obj_seen[slot] == w_.frame) return;  // Already handled this frame.
-  const Obj& o = s_.objs[slot];
-  if (w_.ob.on() && w_.ob.hides_world(o.tbv_lo, o.tbv_hi)) {
-    // Every position the object can reach before the TBV expires is hidden
-    // now: nothing to reveal, and the object (inside the TBV) is hidden too.
-    w_.obj_seen[slot] = w_.frame;
-    ++st_.ob_objects_culled;
-    return;
-  }
-  w_.deferred.push_back(slot);
-  add(slot);
-}
-
 void Traversal::collect(std::int64_t idx, const std::int64_t v[3], std::uint8_t flags) {
   const auto i = static_cast<std::size_t>(idx);
   const detail::IdLists& own = s_.static_lists[0];
   if (flags & Scene::Impl::kStaticIds)
-    for (const std::uint32_t* p = own.begin(i); p != own.end(i); ++p) add(*p);
+    for (const std::uint32_t* p = own.begin(i); p != own.end(i); ++p) col_.add(*p);
   const int gx = static_cast<int>(E_[0] + v[0]);
   const int gy = static_cast<int>(E_[1] + v[1]);
   const int gz = static_cast<int>(E_[2] + v[2]);
@@ -505,7 +354,7 @@ void Traversal::collect(std::int64_t idx, const std::int64_t v[3], std::uint8_t 
       std::uint32_t& mark = w_.cell_seen[s_.cell_base[static_cast<std::size_t>(l)] + c];
       if (mark == w_.frame) continue;
       mark = w_.frame;
-      for (const std::uint32_t* p = lists.begin(c); p != lists.end(c); ++p) add(*p);
+      for (const std::uint32_t* p = lists.begin(c); p != lists.end(c); ++p) col_.add(*p);
     }
   }
   if (!has_dyn_) return;
@@ -514,10 +363,7 @@ void Traversal::collect(std::int64_t idx, const std::int64_t v[3], std::uint8_t 
       s_.bricks_res.x * ((gy >> detail::kBrickShift) + std::int64_t{s_.bricks_res.y} * (gz >> detail::kBrickShift)));
   // The voxel is in view and not proven hidden: this frame sees it, and TBVs
   // made after the frame keep clear of it (Scene::Impl::mark_seen).
-  static_assert(detail::kBrickShift == 2, "a brick's voxels are the 64 bits of a mask");
-  std::uint64_t& seen = w_.seen_vox[bi];
-  if (seen == 0) w_.seen_list.push_back(static_cast<std::uint32_t>(bi));
-  seen |= std::uint64_t{1} << ((gx & 3) | (gy & 3) << 2 | (gz & 3) << 4);
+  col_.see_voxel(gx, gy, gz);
   // The dynamic entries of the voxel's brick and of the coarser cells
   // holding it (those wholly inside an object's range of bricks).
   const int levels = s_.coarse_dyn_live > 0 ? s_.pyr.levels : 2;
@@ -531,9 +377,9 @@ void Traversal::collect(std::int64_t idx, const std::int64_t v[3], std::uint8_t 
       const std::uint32_t slot = e.key >> 1;
       const Obj& o = s_.objs[slot];
       if (e.key & 1u) {
-        if (o.tbv_voxels.contains(glm::ivec3(gx, gy, gz))) reveal_in_frame(slot);
+        if (o.tbv_voxels.contains(glm::ivec3(gx, gy, gz))) col_.reveal(slot);
       } else if (w_.obj_seen[slot] != w_.frame && s_.touches(o, o.center, gx, gy, gz)) {
-        add(slot);
+        col_.add(slot);
       }
     }
   }
@@ -643,20 +489,11 @@ void Traversal::visit_row(int face, int a, int b, int d, std::int64_t la, std::i
     const std::uint8_t flags = flags_arr[static_cast<std::size_t>(idx)];
     // Opaque voxels only: those are the ones under a surface, and the test
     // costs too much for every empty voxel in view.
-    if ((flags & Scene::Impl::kStaticOpaque) && front_blocked(v, idx)) {
+    if ((flags & Scene::Impl::kStaticOpaque) && col_.front_blocked(v, idx)) {
       stamp = static_cast<std::uint8_t>(tag_ | kBlocked);
       ++st_.front_voxels_culled;
       continue;
     }
-    // The occlusion buffer only adds occlusion: a voxel it proves hidden
-    // reads as occluded, exactly as one the shells prove hidden.
-    if (ob_on_ && ob_hides_voxel(v)) {
-      stamp = static_cast<std::uint8_t>(tag_ | kBlocked);
-      ++st_.ob_voxels_culled;
-      continue;
-    }
-    // With the occlusion buffer on, occluders drawn into it keep their
-    // shadows at every distance, and this test measured as cost alone.
     if (deep_ && m >= 3 && occluded_further_back(v, m)) {
       stamp = static_cast<std::uint8_t>(tag_ | kBlocked);
       continue;
@@ -668,7 +505,6 @@ void Traversal::visit_row(int face, int a, int b, int d, std::int64_t la, std::i
       const Vec3 lo{static_cast<double>(v[0]), static_cast<double>(v[1]), static_cast<double>(v[2])};
       blocking = lf_.depth_min(lo) >= lf_.near + depth_tol_;
     }
-    if (ob_on_ && (flags & Scene::Impl::kStaticOpaque)) render_opaque_box(idx);
     stamp = static_cast<std::uint8_t>(tag_ | (blocking ? kBlocked : kLive));
     if (!blocking) {
       live_lo = std::min(live_lo, vb);
@@ -695,42 +531,8 @@ void Traversal::visit_row(int face, int a, int b, int d, std::int64_t la, std::i
 }
 
 void Traversal::run() {
-  const GridSpec& g = s_.spec;
   has_dyn_ = !s_.bricks.empty();
-  const Vec3 eg = s_.to_grid(wf_.eye);
-  if (eye_too_far(eg)) return;  // Scene::frame falls back to frustum culling.
-  for (int a = 0; a < 3; ++a) {
-    E_[a] = static_cast<std::int64_t>(std::floor(eg[a]));
-    glo_[a] = -E_[a];
-    ghi_[a] = s_.res[a] - 1 - E_[a];
-  }
-  stride_[0] = 1;
-  stride_[1] = s_.res.x;
-  stride_[2] = std::int64_t{s_.res.x} * s_.res.y;
-  const Vec3 e = eg - Vec3(static_cast<double>(E_[0]), static_cast<double>(E_[1]),
-                           static_cast<double>(E_[2]));
-
-  // Depth of the farthest grid corner bounds the pyramid we need.
-  double dmax = -std::numeric_limits<double>::infinity();
-  for (int c = 0; c < 8; ++c) {
-    const Vec3 p{(c & 1) ? g.bounds_max.x : g.bounds_min.x, (c & 2) ? g.bounds_max.y : g.bounds_min.y,
-                 (c & 4) ? g.bounds_max.z : g.bounds_min.z};
-    dmax = std::fmax(dmax, glm::dot(p - wf_.eye, wf_.f));
-  }
-  const double world_scale = max_abs(wf_.eye) + s_.slop_bounds + 1.0;
-  const double far_eff = std::fmin(wf_.far, dmax + 1e-9 * world_scale + 1e-9);
-  if (!(far_eff >= wf_.near - 1e-9 * world_scale)) return;  // The grid is wholly before near or behind.
-
-  const double vmin = std::fmin(g.voxel_size.x, std::fmin(g.voxel_size.y, g.voxel_size.z));
-  const double vmax = std::fmax(g.voxel_size.x, std::fmax(g.voxel_size.y, g.voxel_size.z));
-  // Rounding allowance, local grid units: the eye's mapping, then the size of
-  // the numbers the shells reach.
-  tol_ = 1e-9 + 64.0 * kUlp * (world_scale / vmin + max_abs(eg) + double(std::max({s_.res.x, s_.res.y, s_.res.z})));
-  lf_ = detail::make_local_frustum(wf_, e, g.voxel_size, far_eff, tol_);
-  depth_tol_ = 4.0 * tol_ * vmax + 1e-9 * world_scale;
-  vs_ = g.voxel_size;
-  ob_on_ = w_.ob.on();
-  deep_ = s_.options.deep_shells && !ob_on_;
+  deep_ = s_.options.deep_shells;
 
   std::int64_t k0 = 0, kmax = 0;
   for (int a = 0; a < 3; ++a) {
@@ -844,246 +646,13 @@ void Traversal::run() {
 
 }  // namespace
 
-Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& scratch,
-                    FrameResult* out, Clock clock) {
-  Impl& s = *impl_;
-  if (Status st = validate_camera(camera); !st) return st;
-  if (Status st = validate_time("t", t); !st) return st;
-  const auto start = std::chrono::steady_clock::now();
-  s.frames_in_flight.fetch_add(1, std::memory_order_relaxed);
-  struct InFlight {
-    std::atomic<int>& n;
-    ~InFlight() { n.fetch_sub(1, std::memory_order_relaxed); }
-  } in_flight{s.frames_in_flight};
-  Scratch::Impl& w = scratch.impl();
-  w.begin(static_cast<std::size_t>(s.spec.voxel_count()), s.objs.size(), s.opaque_boxes.size(), s.bricks.size(),
-          s.cell_base[static_cast<std::size_t>(s.pyr.levels)]);
-  const WorldFrustum wf = detail::make_world_frustum(camera);
-  FrameStats st;
-  std::vector<std::uint32_t> wake;
+namespace detail {
 
-  // Phase 1: the clock, under `book`; then, only when there is work for it,
-  // `mu` exclusive for the queue other frames left and for expired TBVs.
-  // A frame with nothing to change does not wait for other traversals.
-  bool change = false;
-  {
-    std::lock_guard<std::mutex> book(s.book);
-    if (clock == Clock::Latest && s.time_set) t = std::fmax(t, s.time);
-    if (s.time_set && t < s.time) {
-      return Status::Error("t", "time goes backwards: " + detail::num(t) + " < " + detail::num(s.time));
-    }
-    if (s.viewers.find(viewer) == s.viewers.end())
-      return Status::Error("viewer", "unknown viewer " + std::to_string(viewer));
-    s.time = t;
-    s.time_set = true;
-    if (!std::isfinite(s.first_frame_time)) s.first_frame_time = t;
-    st = s.pending;
-    s.pending = FrameStats{};
-    wake.swap(s.pending_wake);
-    // Only an expired TBV makes a frame wait: it no longer bounds its
-    // object. The queue is conservative as it stands (queued TBVs still
-    // bound their objects, unclaimed objects are in the grid where they
-    // are), so it waits for a free moment (phase 4) or the next change.
-    // The expiry queue changes only under `mu` exclusive and `book`, and a
-    // TBV made after this point expires after s.time >= t, so the check
-    // holds until the traversal.
-    change = !s.expiry.empty() && s.expiry.top().expiry <= t;
-  }
-  if (change) {
-    std::unique_lock<detail::GridMutex> lock(s.mu);
-    std::lock_guard<std::mutex> book(s.book);
-    s.apply_queue(st, s.claims_made);
-    // Expired TBVs get a new validity period around the object's current
-    // position (paper 4.1, criterion 2); an object that stayed hidden through
-    // a whole period gets twice as long the next time. While other frames
-    // run, those expiring within kRenewAhead are renewed now as well (early
-    // is as sound: the new period starts now), so that frames wait for this
-    // lock about once per kRenewAhead rather than at every frame; a frame
-    // alone renews only what expired, which spreads the work over frames.
-    // Each is renewed once: a new period shorter than kRenewAhead must not
-    // bring it straight back into this loop.
-    const double ahead = s.frames_in_flight.load(std::memory_order_relaxed) > 1 ? kRenewAhead : 0.0;
-    std::vector<detail::ExpiryEntry> due;
-    while (!s.expiry.empty() && s.expiry.top().expiry <= t + ahead) {
-      due.push_back(s.expiry.top());
-      s.expiry.pop();
-    }
-    for (const detail::ExpiryEntry& e : due) {
-      Obj& o = s.objs[e.slot];
-      if (!o.under_tbv || o.tbv_epoch != e.epoch) continue;
-      o.tbv_period = std::fmin(2.0 * o.tbv_period, s.max_period(o));
-      s.renew_tbv(e.slot, t);
-      ++st.tbvs_expired;
-      wake.push_back(e.slot);
-    }
-  }
-
-  // Phase 2, shared: the traversal and the tests beyond the grid only read
-  // the scene, so frames of different viewers run this part in parallel.
-  {
-    std::shared_lock<detail::GridMutex> lock(s.mu);
-    out->positions_epoch = s.moves_epoch;
-    // An eye so far away that shell indices lose precision, or a camera
-    // whose basis or tangents came out unusable (validation should make
-    // that impossible): fall back to frustum culling of everything, which
-    // is always conservative.
-    st.frustum_fallback = eye_too_far(s.to_grid(camera.eye)) || !wf.sane();
-    w.ob.begin(wf, st.frustum_fallback ? 0 : s.options.occlusion_buffer);
-    st.ob_width = static_cast<std::uint32_t>(w.ob.width());
-    if (!st.frustum_fallback) {
-      Traversal trav(s, w, wf, st);
-      trav.run();
-    } else {
-      for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
-        const Obj& o = s.objs[slot];
-        if (o.under_tbv && wf.may_intersect_box(o.tbv_lo, o.tbv_hi)) w.deferred.push_back(slot);
-        if (wf.may_intersect_box(o.box_lo(), o.box_hi()) && w.obj_mark[slot] != w.frame) {
-          w.obj_mark[slot] = w.frame;
-          w.pvs.push_back(slot);
-        }
-      }
-    }
-
-    // TBVs reaching beyond the grid: their outer part has no voxels. Tested
-    // here, under the same lock as the traversal, so that a TBV another
-    // viewer's frame made since phase 1 is seen by one or the other.
-    for (std::uint32_t slot : s.outside_tbvs) {
-      ++st.outside_tested;
-      const Obj& o = s.objs[slot];
-      if (!o.under_tbv || !outside_part_visible(wf, s.spec, o.tbv_lo, o.tbv_hi)) continue;
-      if (w.ob.hides_world(o.tbv_lo, o.tbv_hi)) {
-        ++st.ob_objects_culled;
-        continue;
-      }
-      w.deferred.push_back(slot);
-      if (w.obj_mark[slot] != w.frame && wf.may_intersect_box(o.box_lo(), o.box_hi())) {
-        w.obj_mark[slot] = w.frame;
-        w.pvs.push_back(slot);
-      }
-    }
-
-    // Objects reaching beyond the grid: their outer part has no voxels.
-    for (std::uint32_t slot : s.outside_objs) {
-      if (w.obj_mark[slot] == w.frame) continue;
-      ++st.outside_tested;
-      const Obj& o = s.objs[slot];
-      if (outside_part_visible(wf, s.spec, o.box_lo(), o.box_hi())) {
-        if (ob_hides_object(w.ob, o)) {
-          ++st.ob_objects_culled;
-          continue;
-        }
-        w.obj_mark[slot] = w.frame;
-        w.pvs.push_back(slot);
-      }
-    }
-    // Objects found early were tested against a buffer that did not yet
-    // hold the occluders found after them; test the frame's PVS and reveals
-    // once more against the whole buffer. Sound in any order: a bound says
-    // only that some object (in the PVS or not) hides what lies behind it.
-    if (w.ob.on()) {
-      auto hidden = [&](std::uint32_t slot) { return ob_hides_object(w.ob, s.objs[slot]); };
-      const std::size_t before = w.pvs.size();
-      w.pvs.erase(std::remove_if(w.pvs.begin(), w.pvs.end(), hidden), w.pvs.end());
-      w.deferred.erase(std::remove_if(w.deferred.begin(), w.deferred.end(),
-                                      [&](std::uint32_t slot) {
-                                        const Obj& o = s.objs[slot];
-                                        return w.ob.hides_world(o.tbv_lo, o.tbv_hi);
-                                      }),
-                       w.deferred.end());
-      st.ob_objects_culled += static_cast<std::uint32_t>(before - w.pvs.size());
-    }
-    w.ob.end();
-
-    // Phase 3, still shared, under `book`: reveals and new TBVs are queued
-    // for the next holder of `mu` exclusive, claims and the answer are made
-    // here. Nothing changes the grid while this frame holds `mu` shared, so
-    // what the traversal read still holds.
-    std::lock_guard<std::mutex> book(s.book);
-    auto vit = s.viewers.find(viewer);
-    if (vit == s.viewers.end()) return Status::Error("viewer", "unknown viewer " + std::to_string(viewer));
-    // A reveal another frame queued already is that frame's to report.
-    auto queue_reveal = [&](std::uint32_t slot) {
-      Obj& o = s.objs[slot];
-      if (!o.under_tbv || o.reveal_queued) return;
-      o.reveal_queued = true;
-      s.queued_reveals.push_back(slot);
-      ++s.wake_epoch;
-      ++st.tbvs_revealed;
-      wake.push_back(slot);
-    };
-    for (std::uint32_t slot : w.deferred) queue_reveal(slot);
-    w.deferred.clear();
-
-    // Claims: a dynamic object is claimed by every viewer whose last PVS
-    // holds it; one no viewer claims is hidden from all of them and is
-    // queued for a TBV (Scene::Impl::apply_queue).
-    std::vector<std::uint32_t> pvs = w.pvs;
-    std::sort(pvs.begin(), pvs.end());
-    // Objects under a TBV put in the PVS (beyond the grid, or the far-eye
-    // fallback): this viewer may see them, so they are revealed.
-    for (std::uint32_t slot : pvs) queue_reveal(slot);
-    detail::ViewerState& vs = vit->second;
-    s.mark_seen(w, t);
-    {
-      auto a = vs.last_pvs.begin();
-      auto b = pvs.begin();
-      while (a != vs.last_pvs.end() || b != pvs.end()) {
-        if (b == pvs.end() || (a != vs.last_pvs.end() && *a < *b)) {
-          Obj& o = s.objs[*a];
-          if (o.dynamic && --o.claims == 0 && !o.pending_unclaimed) {
-            o.pending_unclaimed = true;
-            s.unclaimed.push_back(*a);
-          }
-          ++a;
-        } else if (a == vs.last_pvs.end() || *b < *a) {
-          Obj& o = s.objs[*b];
-          if (o.dynamic) ++o.claims;
-          ++b;
-        } else {
-          ++a, ++b;
-        }
-      }
-    }
-    s.claims_made = true;
-
-    out->t = t;
-    out->pvs.clear();
-    out->wake.clear();
-    for (std::uint32_t slot : pvs) {
-      out->pvs.push_back(s.objs[slot].id);
-      if (s.objs[slot].dynamic) wake.push_back(slot);
-    }
-    vs.last_pvs.swap(pvs);
-    for (std::uint32_t slot : wake) out->wake.push_back(s.objs[slot].id);
-    std::sort(out->pvs.begin(), out->pvs.end());
-    std::sort(out->wake.begin(), out->wake.end());
-    out->wake.erase(std::unique(out->wake.begin(), out->wake.end()), out->wake.end());
-
-    st.objects_discretized += s.pending.objects_discretized;
-    s.pending.objects_discretized = 0;
-    st.pvs_size = static_cast<std::uint32_t>(out->pvs.size());
-    st.tbvs_active = s.tbv_count;
-  }
-
-  // Phase 4: apply the queue now if no traversal is running; otherwise the
-  // next frame (or move) that holds `mu` exclusive does. Until then queued
-  // TBVs keep bounding their objects and unclaimed objects stay in the grid
-  // at their positions, both conservative.
-  {
-    std::unique_lock<detail::GridMutex> lock(s.mu, std::try_to_lock);
-    if (lock.owns_lock()) {
-      std::lock_guard<std::mutex> book(s.book);
-      if (s.queued(true)) {
-        s.apply_queue(st);
-        st.objects_discretized += s.pending.objects_discretized;
-        s.pending.objects_discretized = 0;
-        st.tbvs_active = s.tbv_count;
-      }
-    }
-  }
-  st.time_us = std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count();
-  out->stats = st;
-  return Status::Ok();
+void traverse_voxels(const Scene::Impl& s, Scratch::Impl& w, const WorldFrustum& wf, FrameStats& st,
+                     const FrameGeometry& g) {
+  Collector col(s, w, wf, st, g);
+  Traversal(s, w, wf, st, g, col).run();
 }
 
+}  // namespace detail
 }  // namespace voxvis

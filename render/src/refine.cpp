@@ -313,7 +313,7 @@ bool lazy_grid(Renderer::Impl& m, const Basis& b, int width, int height, const s
       continue;
     }
     const auto t = Clock::now();
-    glDrawElementsInstancedBaseInstance(GL_TRIANGLES, 36, GL_UNSIGNED_BYTE, nullptr, 1, e.object);
+    glDrawElementsInstancedBaseInstance(GL_TRIANGLES, detail::kBoxIndices, GL_UNSIGNED_BYTE, nullptr, 1, e.object);
     ++stats->draw_calls;
     stats->draw_ms += ms_since(t);
     out->push_back(m.drawn_ids[e.object]);

@@ -217,7 +217,7 @@ bool refine_ternary(Renderer::Impl& m, const Basis& b, int width, int height, co
   };
   auto draw_in_query = [&](std::size_t q, std::size_t instance) {
     glBeginQuery(GL_SAMPLES_PASSED, m.queries[q]);
-    glDrawElementsInstancedBaseInstance(GL_TRIANGLES, 36, GL_UNSIGNED_BYTE, nullptr, 1,
+    glDrawElementsInstancedBaseInstance(GL_TRIANGLES, detail::kBoxIndices, GL_UNSIGNED_BYTE, nullptr, 1,
                                         static_cast<GLuint>(instance));
     glEndQuery(GL_SAMPLES_PASSED);
     ++stats->draw_calls;
@@ -297,7 +297,7 @@ bool refine_ternary(Renderer::Impl& m, const Basis& b, int width, int height, co
     glDepthMask(GL_TRUE);
     glColorMaski(0, GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
     glDepthFunc(GL_LESS);
-    glDrawElementsInstancedBaseInstance(GL_TRIANGLES, 36, GL_UNSIGNED_BYTE, nullptr, 1, p.e.object);
+    glDrawElementsInstancedBaseInstance(GL_TRIANGLES, detail::kBoxIndices, GL_UNSIGNED_BYTE, nullptr, 1, p.e.object);
     m.begin_probes(0);
     ++stats->draw_calls;
     stats->draw_ms += ms_since(t);

@@ -59,7 +59,7 @@ GLuint compile(GLenum type, const char* source, std::string* error) {
 // clockwise seen from outside.
 constexpr float kCorners[8][3] = {{-1, -1, -1}, {1, -1, -1}, {-1, 1, -1}, {1, 1, -1},
                                   {-1, -1, 1},  {1, -1, 1},  {-1, 1, 1},  {1, 1, 1}};
-constexpr std::uint8_t kTriangles[36] = {
+constexpr std::uint8_t kTriangles[detail::kBoxIndices] = {
     0, 2, 1, 1, 2, 3,  // z = -1
     4, 5, 6, 5, 7, 6,  // z = +1
     0, 1, 4, 1, 5, 4,  // y = -1
@@ -303,7 +303,7 @@ void Renderer::Impl::depth_pass(const Basis& b, int w, int h, std::ptrdiff_t cou
   glColorMaski(0, GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
   glDepthFunc(GL_LESS);
   const auto n = static_cast<GLsizei>(count < 0 ? static_cast<std::ptrdiff_t>(instances.size()) : count);
-  if (n > 0) glDrawElementsInstanced(GL_TRIANGLES, 36, GL_UNSIGNED_BYTE, nullptr, n);
+  if (n > 0) glDrawElementsInstanced(GL_TRIANGLES, detail::kBoxIndices, GL_UNSIGNED_BYTE, nullptr, n);
 }
 
 void Renderer::Impl::begin_probes(std::size_t n) {
@@ -319,7 +319,7 @@ void Renderer::Impl::begin_probes(std::size_t n) {
 
 void Renderer::Impl::probe(GLenum target, std::size_t q, std::size_t k) {
   glBeginQuery(target, queries[q]);
-  glDrawElementsInstancedBaseInstance(GL_TRIANGLES, 36, GL_UNSIGNED_BYTE, nullptr, 1, static_cast<GLuint>(k));
+  glDrawElementsInstancedBaseInstance(GL_TRIANGLES, detail::kBoxIndices, GL_UNSIGNED_BYTE, nullptr, 1, static_cast<GLuint>(k));
   glEndQuery(target);
   if ((q + 1) % kFlushEvery == 0) glFlush();
 }

@@ -112,6 +112,9 @@ inline bool may_meet_frustum(const Basis& b, const ObjectDesc& o) {
   return true;
 }
 
+/// Indices of the unit cube's twelve triangles (renderer.cpp's kTriangles):
+/// every object and box is drawn as one instance of them.
+constexpr GLsizei kBoxIndices = 36;
 constexpr int kFlushEvery = 512;  // Queries between flushes (long unflushed batches misreport on llvmpipe).
 constexpr std::int64_t kMaxPixels = std::int64_t{1} << 26;  // 64 Mpixel: 512 MiB of id and depth.
 

@@ -51,7 +51,7 @@ struct SceneOptions {
   /// The grid costs about 9 bytes a voxel plus 4 per worker Scratch.
   std::int64_t max_voxels = std::int64_t{1} << 27;
   /// Per-axis resolution limit.
-  int max_resolution = 8192;
+  int max_resolution = kMaxResolution;
   /// Voxel count the automatic resolution aims at when none is given.
   std::int64_t auto_voxels = 600'000;
   /// TBV validity period in seconds; 0 chooses one per object: the time to
@@ -113,6 +113,12 @@ struct FrameStats {
   std::uint64_t ob_voxels_culled = 0; ///< Voxels the occlusion buffer proved hidden.
   std::uint32_t ob_objects_culled = 0;///< Objects and TBVs it proved hidden.
   std::uint32_t ob_occluders = 0;     ///< Objects rendered into it (that wrote a pixel).
+  std::uint64_t ob_pixels_written = 0;///< Pixel bounds occluders raised.
+  /// With the buffer on, the traversal of the cell pyramid: cells entered
+  /// (their objects tested), and cells skipped whole, hidden by the buffer
+  /// (or beyond its farthest bound, the early end: early_exit).
+  std::uint64_t cells_visited = 0;
+  std::uint64_t cells_hidden = 0;
   double time_us = 0.0;               ///< Engine time for the frame, microseconds.
 };
 

@@ -35,6 +35,14 @@ inline constexpr double kMinExtent = 1e-100;
 /// of any time, so a renewal always moves an expiry forward.
 inline constexpr double kMaxSceneTime = 1e10;
 
+/// Shortest validity period of a temporal bounding volume, seconds: a
+/// period is never cut or clamped below it (SceneOptions::tbv_period too).
+inline constexpr double kMinTbvPeriod = 1e-3;
+
+/// Most voxels along one axis of a grid: the scene file, the wire and
+/// SceneOptions::max_resolution's default.
+inline constexpr int kMaxResolution = 8192;
+
 enum class Shape : std::uint8_t { Sphere, Box };
 
 /// One object of a scene. A box is axis-aligned; it moves rigidly (its centre

@@ -1,0 +1,184 @@
+// collect.cpp — see collect.h.
+#include "collect.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <glm/geometric.hpp>
+
+#include "numeric.h"
+#include "opaque_boxes.h"
+
+namespace voxvis::detail {
+
+namespace {
+constexpr double kUlp = std::numeric_limits<double>::epsilon();
+}
+
+bool eye_too_far(const Vec3& eye_grid) { return max_abs(eye_grid) > 0x1p40; }
+
+bool ob_hides_object(const OcclusionBuffer& ob, const Obj& o) {
+  return o.shape == Shape::Sphere ? ob.hides_sphere(o.center, o.radius) : ob.hides_world(o.box_lo(), o.box_hi());
+}
+
+bool make_frame_geometry(const Scene::Impl& s, const WorldFrustum& wf, FrameGeometry* out) {
+  FrameGeometry& g = *out;
+  const GridSpec& spec = s.spec;
+  g.eg = s.to_grid(wf.eye);
+  for (int a = 0; a < 3; ++a) {
+    g.E[a] = static_cast<std::int64_t>(std::floor(g.eg[a]));
+    g.glo[a] = -g.E[a];
+    g.ghi[a] = s.res[a] - 1 - g.E[a];
+  }
+  g.stride[0] = 1;
+  g.stride[1] = s.res.x;
+  g.stride[2] = std::int64_t{s.res.x} * s.res.y;
+  const Vec3 e = g.eg - Vec3(static_cast<double>(g.E[0]), static_cast<double>(g.E[1]), static_cast<double>(g.E[2]));
+  // Depth of the farthest grid corner bounds the pyramid we need.
+  double dmax = -std::numeric_limits<double>::infinity();
+  for (int c = 0; c < 8; ++c) {
+    const Vec3 p{(c & 1) ? spec.bounds_max.x : spec.bounds_min.x, (c & 2) ? spec.bounds_max.y : spec.bounds_min.y,
+                 (c & 4) ? spec.bounds_max.z : spec.bounds_min.z};
+    dmax = std::fmax(dmax, glm::dot(p - wf.eye, wf.f));
+  }
+  const double world_scale = max_abs(wf.eye) + s.slop_bounds + 1.0;
+  const double far_eff = std::fmin(wf.far, dmax + 1e-9 * world_scale + 1e-9);
+  if (!(far_eff >= wf.near - 1e-9 * world_scale)) return false;  // The grid is wholly before near or behind.
+  const double vmin = std::fmin(spec.voxel_size.x, std::fmin(spec.voxel_size.y, spec.voxel_size.z));
+  const double vmax = std::fmax(spec.voxel_size.x, std::fmax(spec.voxel_size.y, spec.voxel_size.z));
+  // Rounding allowance, local grid units: the eye's mapping, then the size of
+  // the numbers the shells reach.
+  g.tol = 1e-9 + 64.0 * kUlp * (world_scale / vmin + max_abs(g.eg) + double(std::max({s.res.x, s.res.y, s.res.z})));
+  g.lf = make_local_frustum(wf, e, spec.voxel_size, far_eff, g.tol);
+  g.depth_tol = 4.0 * g.tol * vmax + 1e-9 * world_scale;
+  g.vs = spec.voxel_size;
+  return true;
+}
+
+void Collector::add(std::uint32_t slot) {
+  std::uint32_t& seen = w_.obj_seen[slot];
+  if (seen == w_.frame) return;
+  seen = w_.frame;
+  const Obj& o = s_.objs[slot];
+  if (!wf_.may_intersect_box(o.box_lo(), o.box_hi())) return;
+  if (!o.dynamic && own_voxels_hidden(o)) {
+    ++st_.front_objects_culled;
+    return;
+  }
+  OcclusionBuffer& ob = w_.ob;
+  if (ob.on()) {
+    if (ob_hides_object(ob, o)) {
+      ++st_.ob_objects_culled;
+      return;
+    }
+    // Every object the frame finds is an occluder, at the position the
+    // scene has for it (the one it is visible at).
+    const bool wrote =
+        o.shape == Shape::Sphere ? ob.render_sphere(o.center, o.radius) : ob.render_box(o.box_lo(), o.box_hi());
+    if (wrote) ++st_.ob_occluders;
+  }
+  w_.obj_mark[slot] = w_.frame;
+  w_.pvs.push_back(slot);
+}
+
+void Collector::reveal(std::uint32_t slot) {
+  // A TBV reached as not occluded may hold the object anywhere in view, but
+  // the object itself is where it was last reported: it goes into the PVS
+  // whenever its box meets the frustum, with no occlusion test, and the TBV
+  // is dropped after the traversal. Both only add to the PVS (the object's own
+  // voxels do not occlude in this frame), so deferring keeps the frame
+  // conservative while the traversal stays read-only.
+  if (w_.obj_seen[slot] == w_.frame) return;  // Already handled this frame.
+  const Obj& o = s_.objs[slot];
+  if (w_.ob.on() && w_.ob.hides_world(o.tbv_lo, o.tbv_hi)) {
+    // Every position the object can reach before the TBV expires is hidden
+    // now: nothing to reveal, and the object (inside the TBV) is hidden too.
+    w_.obj_seen[slot] = w_.frame;
+    ++st_.ob_objects_culled;
+    return;
+  }
+  w_.deferred.push_back(slot);
+  add(slot);
+}
+
+void Collector::render_opaque_box_at(std::uint32_t b) {
+  if (b == kNoBox || w_.box_seen[b] == w_.frame) return;
+  w_.box_seen[b] = w_.frame;
+  const VoxBox& vb = s_.opaque_boxes[b];
+  const GridSpec& spec = s_.spec;
+  const Vec3 lo = spec.bounds_min + Vec3(vb.lo) * spec.voxel_size;
+  const Vec3 hi = spec.bounds_min + Vec3(vb.hi + 1) * spec.voxel_size;
+  if (w_.ob.render_box(lo, hi)) ++st_.ob_occluders;
+}
+
+bool Collector::front_blocked(const std::int64_t v[3], std::int64_t idx) const {
+  // Every ray from the eye first meets the closed voxel at a point q; but
+  // for a set of rays of measure zero (those meeting it first on an edge or
+  // a corner), q lies inside a face towards the eye, across an axis a where
+  // the eye lies outside v's slab, and the ray's points just before q lie in
+  // the face neighbour v + step_a. When those neighbours are all static
+  // opaque and wholly beyond the near plane, every such ray is inside an
+  // object strictly before q, so no point of v is the first hit on a set of
+  // rays of positive measure. This reaches what the shells' exit rule
+  // cannot: a voxel just under a surface seen at a grazing angle, whose rays
+  // come through neighbours of its own shell.
+  int step[3];
+  for (int a = 0; a < 3; ++a) {
+    if (v[a] != 0) {
+      // Towards the eye. A rounding that puts the true eye in v's slab
+      // only asks for more neighbours than needed.
+      step[a] = v[a] > 0 ? -1 : 1;
+    } else if (g_.lf.e[a] >= g_.tol && g_.lf.e[a] <= 1.0 - g_.tol) {
+      step[a] = 0;  // The eye lies in v's slab along a.
+    } else {
+      return false;  // Too near a face of its voxel to tell.
+    }
+  }
+  if (step[0] == 0 && step[1] == 0 && step[2] == 0) return false;  // The eye's voxel.
+  const std::uint8_t* flags = s_.vflags.data();
+  for (int a = 0; a < 3; ++a) {
+    if (step[a] == 0) continue;
+    std::int64_t u[3] = {v[0], v[1], v[2]};
+    u[a] += step[a];
+    const std::int64_t ui = idx + step[a] * g_.stride[a];
+    if (!g_.in_grid(u) || !(flags[static_cast<std::size_t>(ui)] & Scene::Impl::kStaticOpaque)) return false;
+    const Vec3 lo{static_cast<double>(u[0]), static_cast<double>(u[1]), static_cast<double>(u[2])};
+    if (!(g_.lf.depth_min(lo) >= g_.lf.near + g_.depth_tol)) return false;
+  }
+  return true;
+}
+
+bool Collector::own_voxels_hidden(const Obj& o) const {
+  VoxBox vb;
+  if (!s_.own_voxels(o, &vb)) return false;
+  const glm::ivec3 n = vb.hi - vb.lo + 1;
+  if (n.x * n.y * n.z > 8) return false;  // Small objects only: the test is per voxel.
+  std::int64_t v[3];
+  for (int z = vb.lo.z; z <= vb.hi.z; ++z)
+    for (int y = vb.lo.y; y <= vb.hi.y; ++y)
+      for (int x = vb.lo.x; x <= vb.hi.x; ++x) {
+        v[0] = x - g_.E[0];
+        v[1] = y - g_.E[1];
+        v[2] = z - g_.E[2];
+        if (!front_blocked(v, g_.gindex(v))) return false;
+      }
+  return true;
+}
+
+void Collector::see_voxel(int x, int y, int z) {
+  static_assert(kBrickShift == 2, "a brick's voxels are the 64 bits of a mask");
+  const std::size_t b = s_.pyr.index(1, glm::ivec3(x >> kBrickShift, y >> kBrickShift, z >> kBrickShift));
+  std::uint64_t& seen = w_.seen_vox[b];
+  if (seen == 0) w_.seen_list.push_back(static_cast<std::uint32_t>(b));
+  seen |= std::uint64_t{1} << ((x & 3) | (y & 3) << 2 | (z & 3) << 4);
+}
+
+void Collector::see_brick(std::size_t b, std::uint64_t mask) {
+  if (mask == 0) return;
+  std::uint64_t& seen = w_.seen_vox[b];
+  if (seen == 0) w_.seen_list.push_back(static_cast<std::uint32_t>(b));
+  seen |= mask;
+}
+
+}  // namespace voxvis::detail

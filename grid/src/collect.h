@@ -1,0 +1,94 @@
+// collect.h — what both traversals do with what they reach: the frame's
+// geometry in grid coordinates, objects and TBVs put into the PVS (tested
+// against the frustum, the front-neighbour rule and the occlusion buffer,
+// then drawn into the buffer), opaque boxes drawn, and the record of the
+// voxels the frame saw.
+#pragma once
+
+#include <cstdint>
+
+#include "frustum.h"
+#include "scene_impl.h"
+
+namespace voxvis::detail {
+
+/// The frame's camera in the grid: the eye's voxel E and "local"
+/// coordinates relative to it (small numbers wherever the world is), the
+/// pyramid there, and the rounding allowances of both.
+struct FrameGeometry {
+  Vec3 eg{0.0};                       ///< Eye, grid coordinates.
+  std::int64_t E[3]{};                ///< The eye's voxel.
+  std::int64_t glo[3]{}, ghi[3]{};    ///< The grid's voxels, local coordinates.
+  std::int64_t stride[3]{1, 0, 0};    ///< Voxel index strides.
+  LocalFrustum lf;                    ///< The pyramid, local grid units.
+  double tol = 0.0;                   ///< Rounding allowance, local grid units.
+  double depth_tol = 0.0;             ///< Rounding allowance of depths, world units.
+  Vec3 vs{1.0};                       ///< Voxel size, world units.
+
+  std::int64_t gindex(const std::int64_t v[3]) const {
+    return (E[0] + v[0]) + stride[1] * (E[1] + v[1]) + stride[2] * (E[2] + v[2]);
+  }
+  bool in_grid(const std::int64_t v[3]) const {
+    return v[0] >= glo[0] && v[0] <= ghi[0] && v[1] >= glo[1] && v[1] <= ghi[1] && v[2] >= glo[2] &&
+           v[2] <= ghi[2];
+  }
+};
+
+/// Beyond 2^40 voxels from the grid, shell arithmetic in doubles would lose
+/// the precision the conservative tests need (Scene::frame falls back to
+/// frustum culling).
+bool eye_too_far(const Vec3& eye_grid);
+
+/// The frame's geometry; false when the grid lies wholly before the near
+/// plane or behind the eye (nothing to traverse).
+bool make_frame_geometry(const Scene::Impl& s, const WorldFrustum& wf, FrameGeometry* g);
+
+/// Whether the buffer proves an object (at the position the scene holds)
+/// hidden: a ball by its own outline, a box by itself.
+bool ob_hides_object(const OcclusionBuffer& ob, const Obj& o);
+
+class Collector {
+ public:
+  Collector(const Scene::Impl& s, Scratch::Impl& w, const WorldFrustum& wf, FrameStats& st, const FrameGeometry& g)
+      : s_(s), w_(w), wf_(wf), st_(st), g_(g) {}
+
+  /// An object reached: into the PVS unless its box misses the frustum (a
+  /// voxel in view can hold objects that are not), every voxel holding it
+  /// is hidden by its front neighbours, or the buffer hides it; then drawn
+  /// into the buffer. Once a frame.
+  void add(std::uint32_t slot);
+  /// A TBV reached (docs/design.md, "Objects revealed during a frame").
+  void reveal(std::uint32_t slot);
+  /// Draws the opaque box owning static opaque voxel `idx`, once a frame.
+  void render_opaque_box(std::size_t idx) {
+    if (!s_.opaque_owner.empty()) render_opaque_box_at(s_.opaque_owner[idx]);
+  }
+  /// Draws opaque box b (kNoBox: none), once a frame.
+  void render_opaque_box_at(std::uint32_t b);
+  /// Whether the static opaque face neighbours of local voxel v on the eye's
+  /// side hide it (idx: its grid index; docs/design.md, "Front neighbours").
+  bool front_blocked(const std::int64_t v[3], std::int64_t idx) const;
+  /// Records voxel (x, y, z) (grid indices) as seen by this frame, or a
+  /// whole brick (TBVs keep clear of seen space; scenes with dynamic objects).
+  void see_voxel(int x, int y, int z);
+  /// `mask`: the brick's voxels seen (bit x + 4y + 16z).
+  void see_brick(std::size_t brick, std::uint64_t mask = ~std::uint64_t{0});
+  /// Records the whole cell c of level l (>= 2) as seen.
+  void see_cell(int l, const glm::ivec3& c) {
+    w_.seen_cells.emplace_back(static_cast<std::uint8_t>(l), static_cast<std::uint32_t>(s_.pyr.index(l, c)));
+  }
+
+ private:
+  /// Whether every voxel holding static object o is hidden by its front
+  /// neighbours: then no point of o is visible though it touches voxels in
+  /// view (a block just under the ground touches the air above it).
+  bool own_voxels_hidden(const Obj& o) const;
+
+  const Scene::Impl& s_;
+  Scratch::Impl& w_;
+  const WorldFrustum& wf_;
+  FrameStats& st_;
+  const FrameGeometry& g_;
+};
+
+}  // namespace voxvis::detail

@@ -1,0 +1,213 @@
+// traverse_cells.cpp — the traversal with the occlusion buffer on: the cell
+// pyramid (cells.h) front to back, a cell at a time.
+//
+// From the top cell down, a cell's children are visited front to back:
+// ordered along each axis by their distance (in cells) from the one holding
+// the eye, z outermost, then y, then x. Any cell that can hide part of
+// another lies between it and the eye, so along every axis no farther from
+// the eye's cell: it comes first in that order, as it does in the paper's
+// chess-metric shells (both orders extend the same partial order). A child
+// is entered only when it holds something (its bit in its parent's masks:
+// static content below it, or live dynamic entries), meets the frustum and
+// is not hidden: the buffer proves its box hidden, tile maxima first, or,
+// once every pixel holds a bound, it lies beyond the farthest of them. So
+// empty space is skipped a cell at a time without being looked at, and
+// hidden regions are skipped whole at the coarsest level that shows them
+// hidden: the cost follows what is visible, not the grid's resolution.
+//
+// In a cell entered, the objects stored in it are tested one by one
+// (frustum, front neighbours, buffer) and drawn into the buffer when they
+// may be visible (collect.h); in a brick, so are the objects of its voxels,
+// and the opaque boxes owning its opaque voxels are drawn. The buffer only
+// proves things hidden, in any order (occlusion_buffer.h), so the order
+// affects how much is culled and how early, never whether the answer is
+// conservative.
+#include <algorithm>
+#include <cmath>
+
+#include <glm/geometric.hpp>
+
+#include "numeric.h"
+#include "traverse.h"
+
+namespace voxvis::detail {
+namespace {
+
+class CellTraversal {
+ public:
+  CellTraversal(const Scene::Impl& s, Scratch::Impl& w, const WorldFrustum& wf, FrameStats& st, Collector& col)
+      : s_(s), w_(w), wf_(wf), st_(st), col_(col), eg_(s.to_grid(wf.eye)), has_dyn_(!s.bricks.empty()) {}
+
+  void run() { enter(s_.pyr.levels - 1, glm::ivec3(0), true); }
+
+ private:
+  /// Enters cell c of level l if it meets the frustum and is not hidden;
+  /// `full`: it holds something (else it is only recorded as seen).
+  void enter(int l, const glm::ivec3& c, bool full);
+  void visit(int l, const glm::ivec3& c);
+  void visit_brick(const glm::ivec3& c);
+  /// The order of the 4 children along axis a of a cell whose first child
+  /// along a starts at voxel `first`, children `size` voxels wide.
+  void order(int a, int first, int size, int out[4]) const;
+  /// Records the voxels of a brick in view as seen, a layer at a time
+  /// across the axis nearest the view direction: a layer the buffer hides
+  /// (behind a wall the brick holds) is left out, so that TBVs of objects
+  /// behind the wall may grow up to it without being revealed.
+  void see_layers(const glm::ivec3& c, std::size_t bi);
+  /// Whether every pixel holds a bound and `zmin` lies beyond all of them.
+  bool beyond_buffer(double zmin);
+
+  const Scene::Impl& s_;
+  Scratch::Impl& w_;
+  const WorldFrustum& wf_;
+  FrameStats& st_;
+  Collector& col_;
+  const Vec3 eg_;
+  const bool has_dyn_;
+  std::uint64_t bound_writes_ = ~std::uint64_t{0};  ///< The buffer's writes when far_bound_ was taken.
+  double far_bound_ = 0.0;
+};
+
+bool CellTraversal::beyond_buffer(double zmin) {
+  const OcclusionBuffer& ob = w_.ob;
+  if (ob.writes() != bound_writes_) {
+    bound_writes_ = ob.writes();
+    far_bound_ = ob.farthest_bound();
+  }
+  return zmin > far_bound_;
+}
+
+void CellTraversal::enter(int l, const glm::ivec3& c, bool full) {
+  const GridSpec& g = s_.spec;
+  const int sh = kCellShift * l;
+  const Vec3 lo = g.bounds_min + Vec3(c << sh) * g.voxel_size;
+  const Vec3 hi = g.bounds_min + Vec3(glm::min((c + 1) << sh, s_.res)) * g.voxel_size;
+  if (!wf_.may_intersect_box(lo, hi)) return;
+  // The box's least depth: everything beyond the whole buffer's farthest
+  // bound is hidden (the early end: what is left of the frustum is covered).
+  double zmin = glm::dot(wf_.f, lo - wf_.eye);
+  for (int a = 0; a < 3; ++a) zmin += std::fmin(0.0, wf_.f[a] * (hi[a] - lo[a]));
+  const double tol = 1e-12 * (max_abs(lo) + max_abs(hi) + max_abs(wf_.eye) + 1.0);
+  const bool beyond = beyond_buffer(zmin - 4.0 * tol);
+  if (beyond || w_.ob.hides_world(lo, hi)) {
+    st_.early_exit = st_.early_exit || beyond;
+    ++st_.cells_hidden;
+    const VoxBox b = s_.pyr.span(l, c, 0);
+    const glm::ivec3 n = b.hi - b.lo + 1;
+    st_.ob_voxels_culled += static_cast<std::uint64_t>(n.x) * static_cast<std::uint64_t>(n.y) * static_cast<std::uint64_t>(n.z);
+    return;
+  }
+  if (!full) {
+    // Empty space in view: TBVs made after this frame keep clear of it.
+    if (l >= 2) {
+      col_.see_cell(l, c);
+    } else {
+      col_.see_brick(s_.pyr.index(1, c));
+    }
+    return;
+  }
+  visit(l, c);
+}
+
+void CellTraversal::order(int a, int first, int size, int out[4]) const {
+  const double k = std::floor((eg_[a] - first) / size);
+  if (!(k > 0.0)) {
+    out[0] = 0, out[1] = 1, out[2] = 2, out[3] = 3;
+  } else if (k >= 3.0) {
+    out[0] = 3, out[1] = 2, out[2] = 1, out[3] = 0;
+  } else if (k == 1.0) {
+    out[0] = 1, out[1] = 0, out[2] = 2, out[3] = 3;
+  } else {
+    out[0] = 2, out[1] = 1, out[2] = 3, out[3] = 0;
+  }
+}
+
+void CellTraversal::visit(int l, const glm::ivec3& c) {
+  ++st_.cells_visited;
+  const std::size_t ci = s_.pyr.index(l, c);
+  // The static objects stored in the cell: they touch every voxel of it.
+  const IdLists& lists = s_.static_lists[static_cast<std::size_t>(l)];
+  if (lists.any())
+    for (const std::uint32_t* p = lists.begin(ci); p != lists.end(ci); ++p) col_.add(*p);
+  // Its dynamic objects and TBVs.
+  if (has_dyn_) {
+    const Brick& cell = l == 1 ? s_.bricks[ci] : s_.coarse_dyn[static_cast<std::size_t>(l)][ci];
+    if (cell.live > 0)
+      for (const BrickEntry& e : cell.entries) {
+        if (!s_.current(e)) continue;
+        const std::uint32_t slot = e.key >> 1;
+        const Obj& o = s_.objs[slot];
+        if (!(e.key & 1u)) {
+          col_.add(slot);
+        } else if (wf_.may_intersect_box(o.tbv_lo, o.tbv_hi)) {
+          col_.reveal(slot);
+        }
+      }
+  }
+  if (l == 1) {
+    visit_brick(c);
+    return;
+  }
+  const std::uint64_t stat = s_.static_mask[static_cast<std::size_t>(l)][ci];
+  const std::uint64_t dyn = has_dyn_ ? s_.dyn_mask[static_cast<std::size_t>(l)][ci] : 0;
+  const int size = 1 << (kCellShift * (l - 1));
+  const glm::ivec3 first = c << kCellShift;
+  const glm::ivec3 res = s_.pyr.res[static_cast<std::size_t>(l - 1)];
+  int ox[4], oy[4], oz[4];
+  order(0, first.x * size, size, ox);
+  order(1, first.y * size, size, oy);
+  order(2, first.z * size, size, oz);
+  for (int iz : oz) {
+    if (first.z + iz >= res.z) continue;
+    for (int iy : oy) {
+      if (first.y + iy >= res.y) continue;
+      for (int ix : ox) {
+        if (first.x + ix >= res.x) continue;
+        const std::uint64_t bit = std::uint64_t{1} << (ix | iy << 2 | iz << 4);
+        const bool full = ((stat | dyn) & bit) != 0;
+        if (full || has_dyn_) enter(l - 1, first + glm::ivec3(ix, iy, iz), full);
+      }
+    }
+  }
+}
+
+void CellTraversal::see_layers(const glm::ivec3& c, std::size_t bi) {
+  static constexpr std::uint64_t kLayer0[3] = {0x1111111111111111ull, 0x000F000F000F000Full, 0xFFFFull};
+  int a = 0;
+  for (int k = 1; k < 3; ++k)
+    if (std::fabs(wf_.f[k]) > std::fabs(wf_.f[a])) a = k;
+  const GridSpec& g = s_.spec;
+  const glm::ivec3 o = c << kCellShift;
+  const glm::ivec3 end = glm::min(o + (1 << kCellShift), s_.res);
+  std::uint64_t mask = 0;
+  for (int k = 0; k < (1 << kCellShift) && o[a] + k < end[a]; ++k) {
+    glm::ivec3 lo = o, hi = end;
+    lo[a] = o[a] + k;
+    hi[a] = o[a] + k + 1;
+    if (!w_.ob.hides_world(g.bounds_min + Vec3(lo) * g.voxel_size, g.bounds_min + Vec3(hi) * g.voxel_size))
+      mask |= kLayer0[a] << (k << (2 * a));
+  }
+  col_.see_brick(bi, mask);
+}
+
+void CellTraversal::visit_brick(const glm::ivec3& c) {
+  const std::size_t bi = s_.pyr.index(1, c);
+  // The static objects of its voxels' own lists, and the opaque boxes
+  // owning its opaque voxels (Scene::Impl::brick_static, brick_boxes).
+  st_.voxels_visited += static_cast<std::uint64_t>(__builtin_popcountll(s_.static_mask[1][bi]));
+  for (const std::uint32_t* p = s_.brick_boxes.begin(bi); p != s_.brick_boxes.end(bi); ++p)
+    col_.render_opaque_box_at(*p);
+  for (const std::uint32_t* p = s_.brick_static.begin(bi); p != s_.brick_static.end(bi); ++p) col_.add(*p);
+  // After its own occluders are drawn: a wall hides the layers behind it.
+  if (has_dyn_) see_layers(c, bi);
+}
+
+}  // namespace
+
+void traverse_cells(const Scene::Impl& s, Scratch::Impl& w, const WorldFrustum& wf, FrameStats& st,
+                    const FrameGeometry& g) {
+  Collector col(s, w, wf, st, g);
+  CellTraversal(s, w, wf, st, col).run();
+}
+
+}  // namespace voxvis::detail
