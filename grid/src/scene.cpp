@@ -396,7 +396,7 @@ bool Scene::Impl::covered_now(int x, int y, int z) const {
                                        : coarse_dyn[static_cast<std::size_t>(l)][pyr.index(l, c)];
       if (br.live == 0) continue;
       for (const detail::BrickEntry& e : br.entries) {
-        if ((e.key & 1u) || !current(e) || objs[e.key >> 1].big) continue;
+        if ((e.key & 1u) || !current(e) || objs[e.key >> 1].no_opacity) continue;
         if (n == std::size(slots)) return false;  // Too crowded to test: not covered (tightness only).
         slots[n++] = e.key >> 1;
       }
@@ -486,7 +486,7 @@ void Scene::Impl::discretize(std::uint32_t slot) {
   brick_add(vb, slot << 1, o.disc_gen);
   if (!box_inside_grid(o.box_lo(), o.box_hi())) list_add(outside_objs, o.outside_pos, slot);
   ++pending.objects_discretized;
-  if (o.big) return;  // No dynamic opacity (kDynOpacityMaxVoxels).
+  if (o.no_opacity) return;  // No dynamic opacity (Obj::no_opacity).
   // Adding an object only adds to the cover: a voxel changes only where the
   // object alone contains it, or where its inner box meets the voxel in a
   // volume and joins the union.
@@ -513,7 +513,7 @@ void Scene::Impl::undiscretize(std::uint32_t slot) {
   brick_remove(vb);
   ++o.disc_gen;  // Its brick entries are stale from now on.
   list_remove(outside_objs, o.outside_pos, false);
-  if (o.big) return;  // It never took part in any cover.
+  if (o.no_opacity) return;  // It never took part in any cover.
   // The object no longer counts (its entries are stale): a covered voxel it
   // touched may have needed it, so its cover is computed again from the
   // objects that remain. Per-object counts would not do: a voxel covered by
@@ -888,7 +888,7 @@ Status prepare(const SceneDesc& desc, const SceneOptions& options, Scene::Impl& 
       double n = 1.0;
       for (int a = 0; a < 3; ++a)
         n *= std::fmin(std::ceil(2.0 * o.half[a] * s.inv_vs[a]) + 1.0, static_cast<double>(s.res[a]));
-      o.big = !(n <= static_cast<double>(detail::kDynOpacityMaxVoxels));
+      o.no_opacity = !(n <= static_cast<double>(detail::kDynOpacityMaxVoxels)) || options.occlusion_buffer > 0;
     }
     s.slot_of.emplace(o.id, static_cast<std::uint32_t>(s.objs.size()));
     s.objs.push_back(o);

@@ -69,9 +69,11 @@ struct Obj {
   double radius = 0.0;       ///< Sphere radius, world units.
   Vec3 half{0.0};            ///< Half extents of the bounding box, world units.
   double last_move_t = 0.0;  ///< Time of `center`, seconds.
-  /// A dynamic object touching more than kDynOpacityMaxVoxels voxels: it
-  /// takes no part in dynamic opacity (neither adds nor removes cover).
-  bool big = false;
+  /// A dynamic object that takes no part in dynamic opacity (neither adds
+  /// nor removes cover): one touching more than kDynOpacityMaxVoxels voxels,
+  /// and every one with the occlusion buffer on, whose cell traversal reads
+  /// no voxel's opacity (the buffer holds the object itself).
+  bool no_opacity = false;
 
   // Grid state of a dynamic object.
   bool under_tbv = false;

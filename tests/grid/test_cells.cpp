@@ -20,6 +20,7 @@
 #include "engine_check.h"
 #include "scene_impl.h"
 #include "scenes.h"
+#include "voxvis/generate.h"
 #include "voxvis/rng.h"
 #include "voxvis/scene.h"
 
@@ -235,8 +236,8 @@ TEST(Cells, HugeDynamicObjectsMoveAtTheCostOfTheirSurface) {
   for (const auto& level : s.coarse_dyn)
     for (const detail::Brick& b : level) entries += b.live;
   EXPECT_LT(entries, 1200u * d.objects.size()) << "entries " << entries;  // 84^3 has 9,261 bricks.
-  for (std::size_t i = 0; i + 1 < s.objs.size(); ++i) EXPECT_TRUE(s.objs[i].big);
-  EXPECT_FALSE(s.objs.back().big);
+  for (std::size_t i = 0; i + 1 < s.objs.size(); ++i) EXPECT_TRUE(s.objs[i].no_opacity);
+  EXPECT_FALSE(s.objs.back().no_opacity);
   Mover mover(d, 16);
   const Camera cam = camera_along(Vec3(0, 0, -9.9e11), Vec3(0, 0, 1), 60.0, 1.5, 1.0, 1e13);
   double t = 0.0;
@@ -244,6 +245,126 @@ TEST(Cells, HugeDynamicObjectsMoveAtTheCostOfTheirSurface) {
     t += 1.0;
     ASSERT_TRUE(h.move(t, mover.step(1.0)).ok);
     ASSERT_EQ(h.frame(f % 2 ? cam : camera_along(Vec3(9e11, 9e11, 9e11), Vec3(1, 1, 1), 10.0, 1.0, 1.0, 1e13), t), "");
+  }
+}
+
+/// Checks the cell traversal's masks against the cells' content, counted
+/// afresh: a static bit set iff the child (or a cell below it) holds static
+/// content, a dynamic count equal to the live entries in the cell and below
+/// it, a dynamic bit set iff the child's count is not 0. "" when they agree.
+std::string check_masks(const Scene::Impl& s) {
+  const int levels = s.pyr.levels;
+  std::vector<std::vector<std::uint64_t>> live(static_cast<std::size_t>(levels));
+  std::vector<std::vector<char>> stat(static_cast<std::size_t>(levels));
+  for (int l = 0; l < levels; ++l) {
+    live[static_cast<std::size_t>(l)].assign(s.pyr.cells(l), 0);
+    stat[static_cast<std::size_t>(l)].assign(s.pyr.cells(l), 0);
+  }
+  for (int z = 0; z < s.res.z; ++z)
+    for (int y = 0; y < s.res.y; ++y)
+      for (int x = 0; x < s.res.x; ++x) {
+        const auto i = static_cast<std::size_t>(s.index(x, y, z));
+        if (s.vflags[i] & (Scene::Impl::kStaticIds | Scene::Impl::kStaticOpaque)) stat[0][i] = 1;
+      }
+  for (int l = 1; l < levels; ++l) {
+    const detail::IdLists& lists = s.static_lists[static_cast<std::size_t>(l)];
+    for (std::size_t c = 0; c < s.pyr.cells(l); ++c) {
+      if (lists.any() && lists.end(c) != lists.begin(c)) stat[static_cast<std::size_t>(l)][c] = 1;
+      if (!s.bricks.empty()) {
+        const detail::Brick& b = l == 1 ? s.bricks[c] : s.coarse_dyn[static_cast<std::size_t>(l)][c];
+        live[static_cast<std::size_t>(l)][c] = b.live;
+      }
+    }
+  }
+  // Children into parents, bottom up, checking each parent's bits.
+  for (int l = 0; l + 1 < levels; ++l) {
+    const glm::ivec3 r = s.pyr.res[static_cast<std::size_t>(l)];
+    std::vector<std::uint64_t> sbits(s.pyr.cells(l + 1), 0), dbits(s.pyr.cells(l + 1), 0);
+    for (int z = 0; z < r.z; ++z)
+      for (int y = 0; y < r.y; ++y)
+        for (int x = 0; x < r.x; ++x) {
+          const glm::ivec3 c(x, y, z);
+          const std::size_t i = s.pyr.index(l, c), p = s.pyr.index(l + 1, c >> detail::kCellShift);
+          const std::uint64_t bit = std::uint64_t{1} << ((x & 3) | (y & 3) << 2 | (z & 3) << 4);
+          if (stat[static_cast<std::size_t>(l)][i]) {
+            sbits[p] |= bit;
+            stat[static_cast<std::size_t>(l) + 1][p] = 1;
+          }
+          if (l >= 1 && live[static_cast<std::size_t>(l)][i] > 0) dbits[p] |= bit;
+          if (l >= 1) live[static_cast<std::size_t>(l) + 1][p] += live[static_cast<std::size_t>(l)][i];
+        }
+    for (std::size_t p = 0; p < s.pyr.cells(l + 1); ++p) {
+      const std::string at = "level " + std::to_string(l + 1) + " cell " + std::to_string(p);
+      if (s.static_mask[static_cast<std::size_t>(l) + 1][p] != sbits[p]) return "static mask differs at " + at;
+      if (s.bricks.empty()) continue;
+      if (l >= 1 && s.dyn_mask[static_cast<std::size_t>(l) + 1][p] != dbits[p]) return "dynamic mask differs at " + at;
+      if (s.dyn_count[static_cast<std::size_t>(l) + 1][p] != live[static_cast<std::size_t>(l) + 1][p])
+        return "dynamic count " + std::to_string(s.dyn_count[static_cast<std::size_t>(l) + 1][p]) + " != " +
+               std::to_string(live[static_cast<std::size_t>(l) + 1][p]) + " at " + at;
+    }
+  }
+  return "";
+}
+
+TEST(Cells, MasksFollowMovesRevealsAndTbvs) {
+  // The masks the cell traversal skips empty space by are kept up to date
+  // incrementally; after every move batch and frame (objects moving,
+  // hidden under TBVs, revealed, some huge) they equal a recount.
+  PaperSceneParams pp;
+  pp.objects = 400;
+  pp.dynamic = 150;
+  pp.clusters = 12;
+  pp.max_speed = 6.0;
+  pp.bounds_max = Vec3(40.0, 24.0, 40.0);
+  pp.seed = 3;
+  SceneDesc d = make_paper_scene(pp);
+  d.objects.push_back(dynamic(sphere(100000, Vec3(20.0, 12.0, 20.0), 30.0), 1.0));  // Covers the grid.
+  EngineHarness h(d, {}, "masks");
+  ASSERT_TRUE(h.status().ok) << h.status().str();
+  ASSERT_EQ(check_masks(h.scene().impl()), "");
+  Mover mover(d, 5);
+  double t = 0.0;
+  for (int f = 0; f < 40; ++f) {
+    t += 0.1;
+    ASSERT_TRUE(h.move(t, mover.step(0.1)).ok);
+    ASSERT_EQ(check_masks(h.scene().impl()), "") << "after the moves of frame " << f;
+    const double a = 0.3 * f;
+    const std::string err = h.frame(camera_along(Vec3(20.0 + 18.0 * std::cos(a), 12.0, 20.0 + 18.0 * std::sin(a)),
+                                                 Vec3(-std::cos(a), -0.1, -std::sin(a)), 50.0, 1.5, 0.05, 200.0),
+                                    t);
+    ASSERT_EQ(err, "");
+    ASSERT_EQ(check_masks(h.scene().impl()), "") << "after frame " << f;
+  }
+  EXPECT_GT(h.scene().impl().tbv_count, 0u) << "some objects were hidden under TBVs";
+}
+
+TEST(Cells, WithTheBufferOnDynamicObjectsAddNoOpacity) {
+  // The cell traversal reads no voxel's opacity: with the buffer on, a
+  // moving object costs its cells, not a cover test of every voxel it
+  // touches; with it off, the shells need that opacity.
+  SceneDesc d;
+  d.bounds_min = Vec3(0.0);
+  d.bounds_max = Vec3(32.0);
+  d.grid = glm::ivec3(32);
+  d.objects = {dynamic(box_between(1, Vec3(4.0), Vec3(12.0)), 1.0), box_between(2, Vec3(20.0), Vec3(28.0))};
+  for (int ob : {0, 128}) {
+    SceneOptions o;
+    o.occlusion_buffer = ob;
+    EngineHarness h(d, o, "opacity ob=" + std::to_string(ob));
+    ASSERT_TRUE(h.status().ok);
+    ASSERT_TRUE(h.move(0.1, {Move{1, Vec3(8.5, 8.0, 8.0)}}).ok);
+    ASSERT_EQ(h.frame(camera_along(Vec3(16.0, 16.0, -10.0), Vec3(0.0, 0.0, 1.0)), 0.1), "");
+    const Scene::Impl& s = h.scene().impl();
+    const std::size_t dyn_opaque = static_cast<std::size_t>(
+        std::count_if(s.vflags.begin(), s.vflags.end(), [](std::uint8_t f) { return (f & Scene::Impl::kDynOpaque) != 0; }));
+    const std::size_t static_opaque = static_cast<std::size_t>(std::count_if(
+        s.vflags.begin(), s.vflags.end(), [](std::uint8_t f) { return (f & Scene::Impl::kStaticOpaque) != 0; }));
+    EXPECT_EQ(static_opaque, 512u) << "ob=" << ob;
+    if (ob == 0) {
+      EXPECT_GT(dyn_opaque, 0u);
+    } else {
+      EXPECT_EQ(dyn_opaque, 0u);
+    }
   }
 }
 
