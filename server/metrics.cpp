@@ -108,6 +108,11 @@ struct Families {
                           .Name("voxvis_verify_missed_objects_total")
                           .Help("Visible objects missing from a verified frame's PVS (should stay 0)")
                           .Register(r)),
+        verify_edge_only(prometheus::BuildCounter()
+                             .Name("voxvis_verify_edge_only_total")
+                             .Help("Objects missing from a verified frame's PVS that EGL showed only along an "
+                                   "edge, in single precision: not visible, not counted as missed")
+                             .Register(r)),
         verify_dropped(prometheus::BuildCounter()
                            .Name("voxvis_verify_dropped_total")
                            .Help("Frames sampled for verification but not verified (queue full, or "
@@ -131,6 +136,7 @@ struct Families {
   Family<Gauge>& scenes;
   Family<Counter>& verified;
   Family<Counter>& verify_missed;
+  Family<Counter>& verify_edge_only;
   Family<Counter>& verify_dropped;
   Family<Counter>& errors;
 };
@@ -161,6 +167,7 @@ class PrometheusSceneMetrics final : public SceneMetrics {
     viewers_ = &f.viewers.Add(labels);
     verified_ = &f.verified.Add(labels);
     verify_missed_ = &f.verify_missed.Add(labels);
+    verify_edge_only_ = &f.verify_edge_only.Add(labels);
     verify_dropped_ = &f.verify_dropped.Add(labels);
   }
 
@@ -185,6 +192,7 @@ class PrometheusSceneMetrics final : public SceneMetrics {
     f.viewers.Remove(viewers_);
     f.verified.Remove(verified_);
     f.verify_missed.Remove(verify_missed_);
+    f.verify_edge_only.Remove(verify_edge_only_);
     f.verify_dropped.Remove(verify_dropped_);
   }
 
@@ -227,6 +235,10 @@ class PrometheusSceneMetrics final : public SceneMetrics {
     verified_->Increment();
     if (missed > 0) verify_missed_->Increment(static_cast<double>(missed));
   }
+  void verify_edge_only(std::size_t n) override {
+    std::shared_lock lock(mutex_);
+    if (!removed_ && n > 0) verify_edge_only_->Increment(static_cast<double>(n));
+  }
   void verify_dropped() override {
     std::shared_lock lock(mutex_);
     if (!removed_) verify_dropped_->Increment();
@@ -248,6 +260,7 @@ class PrometheusSceneMetrics final : public SceneMetrics {
   Gauge* viewers_;
   Counter* verified_;
   Counter* verify_missed_;
+  Counter* verify_edge_only_;
   Counter* verify_dropped_;
 };
 

@@ -14,6 +14,8 @@
 //   voxvis_viewers{scene}                     gauge: open viewer streams
 //   voxvis_verify_frames_total{scene}         counter: served frames checked by --verify-fraction
 //   voxvis_verify_missed_objects_total{scene} counter: visible objects missing from a checked PVS
+//   voxvis_verify_edge_only_total{scene}      counter: objects missing from a checked PVS that EGL
+//                                             showed only along an edge (not visible, not missed)
 //   voxvis_verify_dropped_total{scene}        counter: frames sampled but not checked
 //   voxvis_scenes                             gauge
 //   voxvis_errors_total{method, code}         counter: calls ended with a non-OK status
@@ -41,6 +43,9 @@ class SceneMetrics {
   virtual void viewers(int delta) = 0;
   /// A served frame verified (verify mode), with its missed objects.
   virtual void verified(std::size_t missed) = 0;
+  /// Objects of a verified frame missing from its PVS that EGL showed, but
+  /// only along an edge (single precision; not visible, not missed).
+  virtual void verify_edge_only(std::size_t n) = 0;
   /// A frame sampled for verification that could not be verified.
   virtual void verify_dropped() = 0;
 };
@@ -71,6 +76,7 @@ class NullSceneMetrics : public SceneMetrics {
   void tbvs_active(std::uint32_t) override {}
   void viewers(int) override {}
   void verified(std::size_t) override {}
+  void verify_edge_only(std::size_t) override {}
   void verify_dropped() override {}
 };
 

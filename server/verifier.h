@@ -3,7 +3,11 @@
 // its own EGL context, and every visible object missing from the PVS that was
 // served is counted in the metrics and logged with the scene, viewer, frame
 // and camera, so that an operator can replay it (docs/server.md, "Verify
-// mode"). The frame being served never waits for it: jobs are handed over
+// mode"). As in `voxvis verify`, what EGL shows but the PVS lacks is a miss
+// only when the double-precision ray caster confirms it near one of its
+// pixels (raycast::confirm_near_pixels); the rest, seen in single precision
+// along an edge only, is counted apart and not logged (docs/verify.md).
+// The frame being served never waits for it: jobs are handed over
 // after the answer, into a bounded queue; a full queue drops the job (counted).
 #pragma once
 
@@ -69,6 +73,7 @@ class Verifier {
   /// Totals since start.
   struct Totals {
     std::uint64_t verified = 0, frames_missed = 0, objects_missed = 0, dropped = 0;
+    std::uint64_t edge_only = 0;  ///< Sightings dismissed: EGL's single precision along an edge.
   };
   Totals totals() const;
 

@@ -42,6 +42,7 @@
 #include <numbers>
 #include <optional>
 #include <thread>
+#include <unordered_map>
 
 #include <glm/geometric.hpp>
 
@@ -49,6 +50,8 @@ namespace voxvis::raycast {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
+/// The radius of visible_near_pixel's cone, in pixels (raycast.h).
+constexpr double kPixelCone = 1e-3;
 
 bool finite3(const Vec3& v) {
   return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
@@ -100,6 +103,16 @@ struct Ray {
   double x;
   double y;
 };
+
+/// The directions of a cone's four rays around a point of the image, in
+/// units of its radius (RaySampling::cone, visible_near_pixel): 0.4 + k*pi/2
+/// radians, no image axis or diagonal, so that a cone around a ray through a
+/// voxel edge or corner has no ray along a voxel face, and one ray in each
+/// quadrant, so that any line through the point has rays on both sides.
+constexpr double kConeDir[4][2] = {{0.9210609940028851, 0.3894183423086505},
+                                   {-0.3894183423086505, 0.9210609940028851},
+                                   {-0.9210609940028851, -0.3894183423086505},
+                                   {0.3894183423086505, -0.9210609940028851}};
 
 /// Casts one ray against `cands` (sorted by zmin) and appends the first hits'
 /// indices to `hits` (cleared first).
@@ -512,20 +525,24 @@ class Bvh {
   std::vector<std::uint32_t> index_;
 };
 
-/// The image point of sample `k` of `sampling`: the cells row by row, one
-/// ray each (at its centre or jittered), then with `corners` the cell
-/// corners row by row.
+/// The image points of `sampling`: the cells row by row, one ray each (at
+/// its centre or jittered), then with `corners` the cones around the cell
+/// corners, a row of corners at a time.
 class Samples {
  public:
   explicit Samples(const RaySampling& s)
-      : s_(s), cols_(std::max(1, s.cols)), rows_(std::max(1, s.rows)) {}
+      : s_(s), cols_(std::max(1, s.cols)), rows_(std::max(1, s.rows)) {
+    if (s_.corners) {
+      std::vector<Ray> rays;
+      for (int cy = 0; cy <= rows_; ++cy) {
+        corner_row(cy, &rays);
+        corner_rays_ += rays.size();
+      }
+    }
+  }
   /// Rows of samples: the cell rows, then the corner rows.
   int rows() const { return rows_ + (s_.corners ? rows_ + 1 : 0); }
-  std::size_t count() const {
-    const auto c = static_cast<std::size_t>(cols_);
-    const auto r = static_cast<std::size_t>(rows_);
-    return c * r + (s_.corners ? (c + 1) * (r + 1) : 0);
-  }
+  std::size_t count() const { return static_cast<std::size_t>(cols_) * static_cast<std::size_t>(rows_) + corner_rays_; }
   /// The points of sample row `row`.
   void row(int row, std::vector<Ray>* out) const {
     out->clear();
@@ -545,22 +562,140 @@ class Samples {
       }
       return;
     }
-    const int cy = row - rows_;
-    for (int cx = 0; cx <= cols_; ++cx) {
-      const double x = cx == cols_ ? 1.0 : -1.0 + 2.0 * cx / cols_;
-      const double y = cy == rows_ ? 1.0 : -1.0 + 2.0 * cy / rows_;
-      out->push_back({x, y});
-    }
+    corner_row(row - rows_, out);
   }
 
  private:
+  /// The cones around the corners of row `cy` (raycast.h, RaySampling):
+  /// four rays around each corner, at a radius of `cone` cells in the
+  /// directions kConeDir, those strictly inside the image only.
+  void corner_row(int cy, std::vector<Ray>* out) const {
+    out->clear();
+    const double y = cy == rows_ ? 1.0 : -1.0 + 2.0 * cy / rows_;
+    const double rx = s_.cone * 2.0 / cols_;
+    const double ry = s_.cone * 2.0 / rows_;
+    for (int cx = 0; cx <= cols_; ++cx) {
+      const double x = cx == cols_ ? 1.0 : -1.0 + 2.0 * cx / cols_;
+      for (const auto& d : kConeDir) {
+        const Ray r{x + rx * d[0], y + ry * d[1]};
+        if (std::fabs(r.x) < 1.0 && std::fabs(r.y) < 1.0) out->push_back(r);
+      }
+    }
+  }
+
   RaySampling s_;
   int cols_;
   int rows_;
+  std::size_t corner_rays_ = 0;
 };
 
 double ms_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+/// visible_near_pixel's test, set up once for many pixels and objects: the
+/// cone's rays cast by brute force (cast(), as first_hit) over the objects
+/// whose projected bounding boxes overlap the target's (aim()), a superset
+/// of those that may be entered before it on a ray that meets it; a ray is
+/// cast only when it meets the target at all.
+class NearPixel {
+ public:
+  NearPixel(const std::vector<ObjectDesc>& objects, const ViewBasis& basis, int width, int height)
+      : objects_(objects), basis_(basis), width_(width), height_(height),
+        rx_(kPixelCone * 2.0 / width), ry_(kPixelCone * 2.0 / height) {
+    rects_.reserve(objects.size());
+    for (const ObjectDesc& o : objects) rects_.push_back(project_box(o));
+  }
+  /// Takes objects[target] as the object to test from now on: its pixels
+  /// and the objects that may hide it.
+  void aim(std::size_t target) {
+    target_ = target;
+    // Two pixels of margin: far above the rounding of the projections, and
+    // the cones reach 1e-3 pixel beyond the pixel centres.
+    const double mx = 4.0 / width_;
+    const double my = 4.0 / height_;
+    const Rect& t = rects_[target];
+    const Rect window{std::max(t.x0, -1.0) - mx, std::min(t.x1, 1.0) + mx, std::max(t.y0, -1.0) - my,
+                      std::min(t.y1, 1.0) + my};
+    cands_.clear();
+    for (std::size_t k = 0; k < objects_.size(); ++k) {
+      const Rect& r = rects_[k];
+      if (k == target || (r.x0 <= window.x1 && r.x1 >= window.x0 && r.y0 <= window.y1 && r.y1 >= window.y0))
+        cands_.push_back({k, -kInf});
+    }
+    // Pixel i's centre is at x = -1 + (2i+1)/width; a pixel more each side.
+    auto pixel = [](double x, int n) { return std::clamp((x + 1.0) * 0.5 * n - 0.5, -2.0, n + 1.0); };
+    i0_ = std::max(0, static_cast<int>(std::floor(pixel(t.x0, width_))) - 1);
+    i1_ = std::min(width_ - 1, static_cast<int>(std::ceil(pixel(t.x1, width_))) + 1);
+    j0_ = std::max(0, static_cast<int>(std::floor(pixel(t.y0, height_))) - 1);
+    j1_ = std::min(height_ - 1, static_cast<int>(std::ceil(pixel(t.y1, height_))) + 1);
+  }
+  /// The pixels [i0, i1] x [j0, j1] whose cones may meet the target.
+  int i0() const { return i0_; }
+  int i1() const { return i1_; }
+  int j0() const { return j0_; }
+  int j1() const { return j1_; }
+  /// Whether the target is first on some ray of the cone around the centre
+  /// of pixel (i, j).
+  bool visible(int i, int j) {
+    const ObjectDesc& o = objects_[target_];
+    const double x = -1.0 + 2.0 * (i + 0.5) / width_;
+    const double y = -1.0 + 2.0 * (j + 0.5) / height_;
+    for (const auto& c : kConeDir) {
+      const Vec3 d = basis_.ray_dir(x + rx_ * c[0], y + ry_ * c[1]);
+      double t0 = 0.0;
+      double t1 = 0.0;
+      if (!intersect(o, basis_.eye, d, &t0, &t1) || !(std::max(t0, basis_.near) <= std::min(t1, basis_.far)))
+        continue;
+      cast(objects_, cands_, basis_, d, &hits_);
+      if (std::find(hits_.begin(), hits_.end(), target_) != hits_.end()) return true;
+    }
+    return false;
+  }
+
+ private:
+  /// A rectangle of the image plane (x, y as in ViewBasis::ray_dir).
+  struct Rect {
+    double x0, x1, y0, y1;
+  };
+  /// Where the object's bounding box projects; the whole plane when a
+  /// corner is not in front of the eye (every ray that meets the object
+  /// meets the box in front of the eye, so passes through the rectangle).
+  Rect project_box(const ObjectDesc& obj) const {
+    const Rect whole{-kInf, kInf, -kInf, kInf};
+    Vec3 lo;
+    Vec3 hi;
+    object_aabb(obj, &lo, &hi);
+    Rect r{kInf, -kInf, kInf, -kInf};
+    for (int c = 0; c < 8; ++c) {
+      const Vec3 v = Vec3(c & 1 ? hi.x : lo.x, c & 2 ? hi.y : lo.y, c & 4 ? hi.z : lo.z) - basis_.eye;
+      const double z = glm::dot(v, basis_.f);
+      if (!(z > 0.0)) return whole;
+      const double x = glm::dot(v, basis_.right) / (z * basis_.tanx);
+      const double y = glm::dot(v, basis_.up) / (z * basis_.tany);
+      if (!std::isfinite(x) || !std::isfinite(y)) return whole;
+      r = {std::min(r.x0, x), std::max(r.x1, x), std::min(r.y0, y), std::max(r.y1, y)};
+    }
+    return r;
+  }
+
+  const std::vector<ObjectDesc>& objects_;
+  ViewBasis basis_;
+  int width_;
+  int height_;
+  double rx_;
+  double ry_;
+  std::vector<Rect> rects_;
+  std::size_t target_ = 0;
+  std::vector<Candidate> cands_;
+  std::vector<std::size_t> hits_;
+  int i0_ = 0, i1_ = 0, j0_ = 0, j1_ = 0;
+};
+
+/// The index of the object `id` in `objects`, objects.size() when none.
+std::size_t index_of(const std::vector<ObjectDesc>& objects, ObjectId id) {
+  const auto it = std::find_if(objects.begin(), objects.end(), [id](const ObjectDesc& o) { return o.id == id; });
+  return static_cast<std::size_t>(it - objects.begin());
 }
 
 }  // namespace
@@ -647,6 +782,55 @@ std::vector<ObjectId> first_hit(const std::vector<ObjectDesc>& objects, const Ca
   std::sort(ids.begin(), ids.end());
   ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
   return ids;
+}
+
+bool visible_near_pixel(const std::vector<ObjectDesc>& objects, const Camera& cam, int width, int height, int i,
+                        int j, ObjectId id) {
+  ViewBasis basis;
+  if (!make_basis(cam, &basis) || width < 1 || height < 1) return false;
+  const std::size_t target = index_of(objects, id);
+  if (target == objects.size()) return false;
+  NearPixel near(objects, basis, width, height);
+  near.aim(target);
+  return near.visible(i, j);
+}
+
+void confirm_near_pixels(const std::vector<ObjectDesc>& objects, const Camera& cam, int width, int height,
+                         const std::vector<ObjectId>& pixel_ids, const std::vector<ObjectId>& seen,
+                         std::vector<ObjectId>* confirmed, std::vector<ObjectId>* dismissed) {
+  confirmed->clear();
+  dismissed->clear();
+  std::vector<ObjectId> ids = seen;
+  std::sort(ids.begin(), ids.end());
+  ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+  ViewBasis basis;
+  if (ids.empty() || !make_basis(cam, &basis) || width < 1 || height < 1) {
+    *dismissed = ids;
+    return;
+  }
+  std::unordered_map<ObjectId, std::size_t> index;
+  for (std::size_t k = 0; k < objects.size(); ++k) index.emplace(objects[k].id, k);
+  // ids[k]'s object, objects.size() for an id the scene lacks (never confirmed).
+  std::vector<std::size_t> target(ids.size(), objects.size());
+  for (std::size_t k = 0; k < ids.size(); ++k)
+    if (const auto at = index.find(ids[k]); at != index.end()) target[k] = at->second;
+  NearPixel near(objects, basis, width, height);
+  std::vector<char> ok(ids.size(), 0);
+  const auto w = static_cast<std::size_t>(width);
+  const bool by_image = pixel_ids.size() == w * static_cast<std::size_t>(height);
+  for (std::size_t k = 0; k < ids.size(); ++k) {
+    if (target[k] == objects.size()) continue;
+    near.aim(target[k]);
+    // Among the pixels whose cones may meet it (no other can confirm it),
+    // those showing it (a pixel showing nothing, 0, is tried for object 0
+    // too: a superset of its pixels), or all of them.
+    for (int j = near.j0(); j <= near.j1() && !ok[k]; ++j)
+      for (int i = near.i0(); i <= near.i1() && !ok[k]; ++i) {
+        const std::size_t p = static_cast<std::size_t>(j) * w + static_cast<std::size_t>(i);
+        if (!by_image || pixel_ids[p] == ids[k]) ok[k] = near.visible(i, j) ? 1 : 0;
+      }
+  }
+  for (std::size_t k = 0; k < ids.size(); ++k) (ok[k] ? confirmed : dismissed)->push_back(ids[k]);
 }
 
 std::size_t voxels_in_view(const std::vector<ObjectDesc>& objects, const Camera& cam, const Vec3& bmin,

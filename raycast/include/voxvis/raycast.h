@@ -5,14 +5,20 @@
 // take it as the exact reference where no EGL is available
 // (docs/accuracy.md, docs/verify.md).
 //
-// Definition of "visible" used here:
-//   An object is visible when some ray from the eye, inside the frustum,
-//   reaches a point of the object between the near and far planes before it
-//   reaches any other object.
+// Definition of "visible" used here (docs/design.md, "What visible means"):
+//   An object is visible when it is the first hit (ties in depth included)
+//   on a set of rays from the eye, inside the frustum, of positive measure:
+//   a solid angle, however small, whose rays reach a point of the object
+//   between the near and far planes before they reach any other object.
+//   An object seen only along an edge or at a corner (a set of rays of
+//   measure zero) is not visible; two faces tied in depth over an area are
+//   both visible; a slit of any positive width shows what lies behind it.
 //
-// Objects are solids: a sphere is the closed ball centre ± radius; a box is
-// the closed axis-aligned box centre ± half_extent (it may be flat when a
-// half extent is 0).
+// A sampled ray stands for the rays around it: jittered rays fall on an
+// edge, a corner or the frustum's boundary with probability zero, and the
+// optional corner samples are small cones of rays around the cell corners
+// (RaySampling::corners), never the exact corner rays, which on a voxel
+// grid seen from a voxel corner run exactly along voxel edges.
 //
 // Rays: r(t) = eye + t*d with d = f + x*tanx*right + y*tany*up', where
 // f = normalize(dir), right = normalize(cross(f, up)), up' = cross(right, f),
@@ -33,7 +39,11 @@
 // The caster samples the image: it proves visibility (every id it returns is
 // visible), never invisibility. Tests therefore assert PVS ⊇ visible_objects.
 // With pixel_centres(W, H) it samples what the headless renderer samples
-// (voxvis/render.h): the first hit at every pixel centre.
+// (voxvis/render.h): the first hit at every pixel centre. The renderer
+// computes in single precision and may show, at a pixel centre whose ray
+// runs along an edge, what lies behind the edge (seen there only, a set of
+// rays of measure zero); confirm_near_pixels tells such sightings apart,
+// with cones of rays around the pixel centres (visible_near_pixel).
 //
 // Every computed hit is the same as testing every object on every ray
 // (CastOptions::brute_force); visible_objects only finds it faster, through a
@@ -50,15 +60,22 @@ namespace voxvis::raycast {
 
 /// How the image is sampled: a cols x rows grid of cells over x, y in
 /// [-1, 1], one ray per cell at a jittered position drawn from `seed`
-/// (or at the cell centre when `jitter` is false), plus optionally one ray
-/// through every cell corner, which includes the exact frustum edges and
-/// corners (x, y = ±1).
+/// (or at the cell centre when `jitter` is false), plus optionally a small
+/// cone of rays around every cell corner, frustum edges and corners
+/// (x, y = ±1) included: four rays `cone` cells from the corner, in
+/// directions that are neither the image axes nor its diagonals, those
+/// strictly inside the image. They find what shows through a slit or past
+/// an edge that the corner ray runs along (the hard cases: an eye on voxel
+/// corners looking along an axis or a diagonal), without counting what the
+/// exact corner ray alone meets first (a tie along an edge, a set of rays
+/// of measure zero: not visible).
 struct RaySampling {
   int cols = 96;
   int rows = 96;
   bool jitter = true;
   bool corners = false;
   std::uint64_t seed = 0x5eed;
+  double cone = 1e-3;  ///< Radius of the corner cones, in cells.
 };
 
 /// The rays through the pixel centres of a width x height image: pixel
@@ -111,8 +128,8 @@ bool make_basis(const Camera& cam, ViewBasis* out);
 /// intervals (d = 0 inside a slab) are reported as ±infinity.
 bool intersect(const ObjectDesc& obj, const Vec3& eye, const Vec3& d, double* t0, double* t1);
 
-/// The ids of the objects hit first by at least one sampled ray (see the
-/// header comment), ascending and unique. Empty for an invalid camera.
+/// The ids of the objects hit first (ties included) by at least one sampled
+/// ray (see the header comment), ascending and unique. Empty for an invalid camera.
 /// `stats` (optional) receives the costs.
 std::vector<ObjectId> visible_objects(const std::vector<ObjectDesc>& objects, const Camera& cam,
                                       const RaySampling& sampling = {}, const CastOptions& options = {},
@@ -123,6 +140,37 @@ std::vector<ObjectId> visible_objects(const std::vector<ObjectDesc>& objects, co
 /// Tests every object (brute force).
 std::vector<ObjectId> first_hit(const std::vector<ObjectDesc>& objects, const Camera& cam, double x,
                                 double y);
+
+/// Whether object `id` is visible near the centre of pixel (i, j) of a
+/// width x height image (pixel (i, j) as pixel_centres samples it): the
+/// first hit (ties included) of at least one of four rays 1e-3 pixel from
+/// the centre, in the directions of the corner cones (RaySampling::corners;
+/// one in each quadrant, none along an image axis or diagonal). The centre
+/// ray itself is not cast: it may run exactly along an edge, where what it
+/// meets first is seen on a set of rays of measure zero (not visible), while
+/// the cone's rays pass on either side of the edge. What shows near the
+/// centre only through a gap narrower than the cone (1e-3 pixel) is missed.
+/// Brute force (first_hit's code path) over the objects whose projected
+/// bounding boxes overlap the object's, a ray cast only where it meets the
+/// object: linear in the objects. False for an invalid camera, a size below
+/// 1 or an id not in `objects`.
+bool visible_near_pixel(const std::vector<ObjectDesc>& objects, const Camera& cam, int width, int height, int i,
+                        int j, ObjectId id);
+
+/// Confirms what a single-precision renderer showed at the pixel centres of
+/// width x height (voxvis/render.h): each id of `seen` goes to `confirmed`
+/// when it is visible_near_pixel at one of its pixels, else to `dismissed`
+/// (both ascending, unique). Its pixels are those whose entry in `pixel_ids`
+/// is the id (width * height ids, row-major from the bottom row, 0 where
+/// nothing shows: render::Renderer::last_ids); with `pixel_ids` empty, every
+/// pixel. An id `objects` lacks is dismissed. Only pixels within the
+/// projection of an object's bounding box are tried (no other can confirm
+/// it), each with four intersections, and a ray that meets the object is
+/// cast by brute force over the objects whose projections overlap its own;
+/// an id is confirmed at its first such pixel.
+void confirm_near_pixels(const std::vector<ObjectDesc>& objects, const Camera& cam, int width, int height,
+                         const std::vector<ObjectId>& pixel_ids, const std::vector<ObjectId>& seen,
+                         std::vector<ObjectId>* confirmed, std::vector<ObjectId>* dismissed);
 
 /// Image coordinates (x, y) of point `p` (the ray through them passes
 /// through p); false when p is not in front of the eye or the camera is

@@ -13,7 +13,12 @@
 // precision relative to the eye, so objects entered at depths within about
 // 1e-6 of each other may be told apart differently from a double-precision
 // caster (ties), and an object that covers no pixel centre is not visible at
-// that resolution however close it comes.
+// that resolution however close it comes. Rounding may also let a pixel
+// centre's ray that crosses an edge where objects meet through to what lies
+// behind them: seen along the edge only (rays of measure zero), which is not
+// visible by the definition (voxvis/raycast.h). `voxvis verify` and the
+// server's verify mode confirm a sighting in double precision before they
+// count it as a miss (raycast::confirm_near_pixels; docs/verify.md).
 //
 // A Renderer owns its context; the EGL display under it is initialised once
 // and kept for the life of the process. A Renderer may be created on one
