@@ -42,6 +42,26 @@ class CountingMetrics final : public server::NullSceneMetrics {
   std::atomic<std::size_t> frames{0}, objects_missed{0}, edge_only{0}, dropped{0};
 };
 
+/// A verifier whose log lines are kept.
+struct LoggedVerifier {
+  explicit LoggedVerifier(const VerifyConfig& c)
+      : v(Verifier::start(
+            c,
+            [this](const std::string& l) {
+              std::lock_guard<std::mutex> lock(mu);
+              log.push_back(l);
+            },
+            &error)) {}
+  std::vector<std::string> lines() {
+    std::lock_guard<std::mutex> lock(mu);
+    return log;
+  }
+  std::mutex mu;
+  std::vector<std::string> log;
+  std::string error;
+  std::unique_ptr<Verifier> v;
+};
+
 /// The value of a metric line "name{scene="id"} value", -1 when absent.
 double metric(const std::string& text, const std::string& name, const std::string& scene) {
   const std::string key = name + "{scene=\"" + scene + "\"} ";
@@ -74,17 +94,9 @@ TEST(Verifier, CountsAndLogsTheMissesOfACutPvs) {
   c.fraction = 1.0;
   c.width = 64;
   c.height = 36;
-  std::vector<std::string> lines;
-  std::mutex mu;
-  std::string error;
-  auto v = Verifier::start(
-      c,
-      [&](const std::string& l) {
-        std::lock_guard<std::mutex> lock(mu);
-        lines.push_back(l);
-      },
-      &error);
-  ASSERT_TRUE(v) << error;
+  LoggedVerifier lv(c);
+  ASSERT_TRUE(lv.v) << lv.error;
+  Verifier* v = lv.v.get();
   // Two spheres side by side in front of the eye, a third hidden behind a wall.
   VerifyJob job;
   job.scene = "s";
@@ -107,7 +119,7 @@ TEST(Verifier, CountsAndLogsTheMissesOfACutPvs) {
   EXPECT_EQ(t.verified, 2u);
   EXPECT_EQ(t.frames_missed, 1u);
   EXPECT_EQ(t.objects_missed, 1u);
-  std::lock_guard<std::mutex> lock(mu);
+  const std::vector<std::string> lines = lv.lines();
   ASSERT_EQ(lines.size(), 1u);
   EXPECT_THAT(lines[0], HasSubstr("verify: MISS scene 's' viewer peer-1 viewer 4 frame 7: 1 visible object(s)"));
   EXPECT_THAT(lines[0], HasSubstr("[2]"));
@@ -124,17 +136,9 @@ TEST(Verifier, AnEdgeOnlySightingIsCountedApartNotMissed) {
   c.fraction = 1.0;
   c.width = 160;
   c.height = 90;
-  std::vector<std::string> lines;
-  std::mutex mu;
-  std::string error;
-  auto v = Verifier::start(
-      c,
-      [&](const std::string& l) {
-        std::lock_guard<std::mutex> lock(mu);
-        lines.push_back(l);
-      },
-      &error);
-  ASSERT_TRUE(v) << error;
+  LoggedVerifier lv(c);
+  ASSERT_TRUE(lv.v) << lv.error;
+  Verifier* v = lv.v.get();
   const ScenePath world = make_voxel_world(24, 8, false, 4);
   VerifyJob job;
   job.scene = "world";
@@ -167,7 +171,7 @@ TEST(Verifier, AnEdgeOnlySightingIsCountedApartNotMissed) {
   EXPECT_EQ(t.objects_missed, 1u);
   EXPECT_EQ(t.frames_missed, 1u);
   EXPECT_EQ(t.edge_only, 2u);
-  std::lock_guard<std::mutex> lock(mu);
+  const std::vector<std::string> lines = lv.lines();
   ASSERT_EQ(lines.size(), 1u);
   EXPECT_THAT(lines[0], HasSubstr("frame 1: 1 visible object(s)"));
   EXPECT_THAT(lines[0], HasSubstr("[" + std::to_string(cut) + "]"));
