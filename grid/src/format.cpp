@@ -1042,6 +1042,17 @@ std::string result_to_json(std::size_t frame_index, const FrameResult& result) {
     const auto r = std::to_chars(buf, buf + sizeof buf, t, std::chars_format::fixed, 3);
     out.append(buf, r.ptr);
   }
+  const auto micros = [&out](const char* name, double v) {
+    out += ",\"";
+    out += name;
+    out += "\":";
+    char buf[64];
+    const auto r = std::to_chars(buf, buf + sizeof buf, std::isfinite(v) ? v : 0.0, std::chars_format::fixed, 3);
+    out.append(buf, r.ptr);
+  };
+  micros("traverse_us", s.traverse_us);
+  micros("render_us", s.render_us);
+  micros("retest_us", s.retest_us);
   const auto count = [&out](const char* name, std::uint64_t v) {
     out += ",\"";
     out += name;

@@ -306,9 +306,13 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
   {
     std::shared_lock<detail::GridMutex> lock(s.mu);
     out->positions_epoch = s.moves_epoch;
+    const auto t0 = std::chrono::steady_clock::now();
     traverse(f);
+    const auto t1 = std::chrono::steady_clock::now();
     beyond_grid(f);
     retest(f);
+    f.st.traverse_us = std::chrono::duration<double, std::micro>(t1 - t0).count();
+    f.st.retest_us = std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t1).count();
     if (Status st = commit(f, out); !st) return st;
   }
   apply_if_free(f);

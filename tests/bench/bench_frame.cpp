@@ -36,6 +36,13 @@
 //       vfc_mean           objects passing view-frustum culling alone (AABB)
 //       ob_voxels_mean, ob_objects_mean (with /ob:W) voxels and objects or
 //                          TBVs the buffer proved hidden per frame
+//       cells_mean, cells_hidden_mean (with /ob:W) cells of the pyramid the
+//                          traversal entered, and skipped whole as hidden
+//       traverse_us, render_us, retest_us, bookkeeping_us  where time_us
+//                          went, means per frame: the traversal, drawing
+//                          occluders (within it), the tests beyond the grid
+//                          and of the PVS against the finished buffer, and
+//                          the rest (TBVs, claims, queues, the answer)
 //     exact_mean and vfc_mean are computed once, outside the timed loop, on
 //     every 20th frame of the path (they depend on neither grid nor buffer).
 //
@@ -258,7 +265,8 @@ void BM_Path(benchmark::State& state, Path which, glm::ivec3 grid, int ob) {
     }
   }
   std::vector<double> times, vfc_times;
-  double voxels = 0.0, ob_voxels = 0.0, ob_objects = 0.0, pvs = 0.0;
+  double voxels = 0.0, ob_voxels = 0.0, ob_objects = 0.0, pvs = 0.0, cells = 0.0, cells_hidden = 0.0;
+  double traverse = 0.0, render = 0.0, retest = 0.0, whole = 0.0;
   std::vector<double> pvs_at(n, -1.0), voxels_at(n, -1.0);
   std::vector<int> edge_only(n, 0);
   for (auto _ : state) {
@@ -271,6 +279,12 @@ void BM_Path(benchmark::State& state, Path which, glm::ivec3 grid, int ob) {
     voxels += static_cast<double>(result.stats.voxels_visited);
     ob_voxels += static_cast<double>(result.stats.ob_voxels_culled);
     ob_objects += static_cast<double>(result.stats.ob_objects_culled);
+    cells += static_cast<double>(result.stats.cells_visited);
+    cells_hidden += static_cast<double>(result.stats.cells_hidden);
+    traverse += result.stats.traverse_us;
+    render += result.stats.render_us;
+    retest += result.stats.retest_us;
+    whole += result.stats.time_us;
     pvs += static_cast<double>(result.pvs.size());
     if (pvs_at[k] < 0.0) {
       pvs_at[k] = static_cast<double>(result.pvs.size());
@@ -290,9 +304,15 @@ void BM_Path(benchmark::State& state, Path which, glm::ivec3 grid, int ob) {
   state.counters["vfc_median_us"] = percentile(vfc_times, 0.5);
   state.counters["voxels_mean"] = voxels / frames;
   state.counters["pvs_mean"] = pvs / frames;
+  state.counters["traverse_us"] = traverse / frames;
+  state.counters["render_us"] = render / frames;
+  state.counters["retest_us"] = retest / frames;
+  state.counters["bookkeeping_us"] = (whole - traverse - retest) / frames;
   if (ob > 0) {
     state.counters["ob_voxels_mean"] = ob_voxels / frames;
     state.counters["ob_objects_mean"] = ob_objects / frames;
+    state.counters["cells_mean"] = cells / frames;
+    state.counters["cells_hidden_mean"] = cells_hidden / frames;
   }
   double sub = 0.0, sub_edge = 0.0, sub_voxels = 0.0, sub_in_view = 0.0;
   int sub_n = 0;

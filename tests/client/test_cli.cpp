@@ -82,6 +82,12 @@ nlohmann::json check_output_line(const std::string& line, std::size_t index) {
     EXPECT_TRUE(s.at(key).is_number_unsigned() || s.at(key).get<std::int64_t>() >= 0) << key;
   }
   EXPECT_GE(s.at("time_us").get<double>(), 0.0);
+  // Its split: each part within the whole (the clock read around it).
+  for (const char* part : {"traverse_us", "render_us", "retest_us"}) {
+    EXPECT_GE(s.at(part).get<double>(), 0.0) << part;
+    EXPECT_LE(s.at(part).get<double>(), s.at("time_us").get<double>() + 0.001) << part;
+  }
+  EXPECT_LE(s.at("render_us").get<double>(), s.at("traverse_us").get<double>() + 0.001);
   EXPECT_TRUE(s.at("early_exit").is_boolean());
   EXPECT_EQ(s.at("pvs_size").get<std::size_t>(), j.at("pvs").size());
   return j;

@@ -32,6 +32,12 @@ std::string check_stats(const FrameStats& s, std::size_t objects) {
     err << "stats.objects_discretized=" << s.objects_discretized << " > objects; ";
   }
   if (s.outside_tested > 2 * objects) err << "stats.outside_tested=" << s.outside_tested << "; ";
+  // The split of time_us: parts of it, measured inside it.
+  for (const double part : {s.traverse_us, s.render_us, s.retest_us})
+    if (!std::isfinite(part) || part < 0.0) err << "a part of time_us is " << part << "; ";
+  if (s.render_us > s.traverse_us + 1e-6 || s.traverse_us + s.retest_us > s.time_us + 1e-6)
+    err << "time split render " << s.render_us << " traverse " << s.traverse_us << " retest " << s.retest_us
+        << " over time_us " << s.time_us << "; ";
   return err.str();
 }
 

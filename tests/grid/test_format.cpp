@@ -1,6 +1,7 @@
 // Tests of the batch formats (format.h, docs/formats.md) and of the
 // deterministic generators (generate.h).
 #include <cmath>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -637,6 +638,9 @@ TEST(ResultFormat, OneCompactLineWithAllFields) {
   r.stats.front_voxels_culled = 9;
   r.stats.front_objects_culled = 10;
   r.stats.time_us = 12.3456;
+  r.stats.traverse_us = 7.0004;
+  r.stats.render_us = 2.5;
+  r.stats.retest_us = std::numeric_limits<double>::quiet_NaN();  // Written as 0.
   const std::string line = result_to_json(42, r);
   EXPECT_EQ(line.find('\n'), std::string::npos);
   EXPECT_EQ(line.find(' '), std::string::npos);
@@ -646,8 +650,11 @@ TEST(ResultFormat, OneCompactLineWithAllFields) {
   EXPECT_EQ(j.at("pvs"), nlohmann::json::array({1, 5, 4294967295u}));
   EXPECT_EQ(j.at("wake"), nlohmann::json::array({5}));
   const nlohmann::json& s = j.at("stats");
-  EXPECT_EQ(s.size(), 15u);  // No buffer counters: ob_width is 0 (off).
+  EXPECT_EQ(s.size(), 18u);  // No buffer counters: ob_width is 0 (off).
   EXPECT_NEAR(s.at("time_us").get<double>(), 12.346, 1e-9);
+  EXPECT_NEAR(s.at("traverse_us").get<double>(), 7.0, 1e-9);
+  EXPECT_NEAR(s.at("render_us").get<double>(), 2.5, 1e-9);
+  EXPECT_EQ(s.at("retest_us").get<double>(), 0.0);
   EXPECT_EQ(s.at("voxels_visited"), 123456789012ull);
   EXPECT_EQ(s.at("shells"), 17);
   EXPECT_EQ(s.at("objects_discretized"), 2);

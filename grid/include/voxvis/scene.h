@@ -120,6 +120,13 @@ struct FrameStats {
   std::uint64_t cells_visited = 0;
   std::uint64_t cells_hidden = 0;
   double time_us = 0.0;               ///< Engine time for the frame, microseconds.
+  /// Where time_us went: the traversal (its occluders' drawing included),
+  /// drawing occluders into the buffer alone, and the tests beyond the grid
+  /// and of the PVS against the finished buffer. The rest is bookkeeping
+  /// (TBV renewal, claims, queues, the answer).
+  double traverse_us = 0.0;
+  double render_us = 0.0;
+  double retest_us = 0.0;
 };
 
 struct FrameResult {
