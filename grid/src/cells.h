@@ -38,10 +38,12 @@ struct Pyramid {
   int levels = 1;                         ///< Levels 0 .. levels - 1; the top has one cell.
   std::array<glm::ivec3, kMaxLevels> res{};  ///< Cells per axis; res[0] is the grid.
 
+  /// At least the voxels and the bricks (levels >= 2, so that the top is a
+  /// cell, never a voxel, even for a grid of one voxel).
   static Pyramid make(const glm::ivec3& voxels) {
     Pyramid p;
     p.res[0] = voxels;
-    while (p.res[p.levels - 1] != glm::ivec3(1) && p.levels < kMaxLevels) {
+    while ((p.res[p.levels - 1] != glm::ivec3(1) || p.levels < 2) && p.levels < kMaxLevels) {
       p.res[p.levels] = (p.res[p.levels - 1] + ((1 << kCellShift) - 1)) >> kCellShift;
       ++p.levels;
     }
