@@ -2,7 +2,6 @@
 #include "collect.h"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <limits>
 
@@ -16,17 +15,19 @@ namespace voxvis::detail {
 namespace {
 constexpr double kUlp = std::numeric_limits<double>::epsilon();
 
-/// Adds the time of its scope to a counter of microseconds (FrameStats::render_us).
-class ScopedMicros {
+/// Adds the ticks of its scope to a counter (Scratch::Impl::render_ticks).
+/// No clock read per occluder: a clock can be a system call (a CPU-time
+/// clock is), and the frame's own two reads are what timing tools replace.
+class ScopedTicks {
  public:
-  explicit ScopedMicros(double& sum) : sum_(sum), t0_(std::chrono::steady_clock::now()) {}
-  ~ScopedMicros() { sum_ += std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0_).count(); }
-  ScopedMicros(const ScopedMicros&) = delete;
-  ScopedMicros& operator=(const ScopedMicros&) = delete;
+  explicit ScopedTicks(std::uint64_t& sum) : sum_(sum), t0_(ticks()) {}
+  ~ScopedTicks() { sum_ += ticks() - t0_; }
+  ScopedTicks(const ScopedTicks&) = delete;
+  ScopedTicks& operator=(const ScopedTicks&) = delete;
 
  private:
-  double& sum_;
-  std::chrono::steady_clock::time_point t0_;
+  std::uint64_t& sum_;
+  std::uint64_t t0_;
 };
 }  // namespace
 
@@ -88,7 +89,7 @@ void Collector::add(std::uint32_t slot) {
     }
     // Every object the frame finds is an occluder, at the position the
     // scene has for it (the one it is visible at).
-    const ScopedMicros timed(st_.render_us);
+    const ScopedTicks timed(w_.render_ticks);
     const bool wrote =
         o.shape == Shape::Sphere ? ob.render_sphere(o.center, o.radius) : ob.render_box(o.box_lo(), o.box_hi());
     if (wrote) ++st_.ob_occluders;
@@ -124,7 +125,7 @@ void Collector::render_opaque_box_at(std::uint32_t b) {
   const GridSpec& spec = s_.spec;
   const Vec3 lo = spec.bounds_min + Vec3(vb.lo) * spec.voxel_size;
   const Vec3 hi = spec.bounds_min + Vec3(vb.hi + 1) * spec.voxel_size;
-  const ScopedMicros timed(st_.render_us);
+  const ScopedTicks timed(w_.render_ticks);
   if (w_.ob.render_box(lo, hi)) ++st_.ob_occluders;
 }
 

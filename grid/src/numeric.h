@@ -2,12 +2,30 @@
 #pragma once
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <string>
+#if defined(__x86_64__) || defined(__i386__)
+#include <x86intrin.h>
+#endif
 
 #include "voxvis/types.h"
 
 namespace voxvis::detail {
+
+/// A cheap monotonic tick count for splitting a frame's time into parts
+/// (FrameStats::render_us): the time stamp counter on x86, else the steady
+/// clock in nanoseconds. Ticks are only ever compared with ticks of the same
+/// frame; the frame's clock reads (two, as every timed method makes) turn
+/// their ratio into microseconds.
+inline std::uint64_t ticks() {
+#if defined(__x86_64__) || defined(__i386__)
+  return __rdtsc();
+#else
+  return static_cast<std::uint64_t>(std::chrono::steady_clock::now().time_since_epoch().count());
+#endif
+}
 
 inline bool finite3(const Vec3& v) {
   return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);

@@ -165,6 +165,8 @@ struct Scratch::Impl {
   /// Per object slot: frame in which it was tested against the frustum.
   std::vector<std::uint32_t> obj_seen;
   std::uint32_t frame = 0;
+  /// Ticks (detail::ticks) spent drawing occluders this frame.
+  std::uint64_t render_ticks = 0;
 
   // Reused buffers.
   std::vector<std::uint32_t> pvs;
