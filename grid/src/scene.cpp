@@ -452,6 +452,7 @@ void Scene::Impl::brick_remove(const VoxBox& vb) {
 }
 
 void Scene::Impl::dyn_count_add(int level, glm::ivec3 c, int delta) {
+  if (dyn_count[1].empty()) return;  // Buffer off: no cell traversal to summarize for.
   for (int l = level; l < pyr.levels; ++l, c >>= detail::kCellShift) {
     std::uint32_t& n = dyn_count[static_cast<std::size_t>(l)][pyr.index(l, c)];
     const bool was = n > 0;
@@ -986,12 +987,12 @@ Status scene_cost(const Scene::Impl& s, const std::array<std::uint64_t, detail::
   // (the lists keep up to twice their live entries); each object's state
   // and index entry; with the buffer on, the per-brick lists (at most the
   // voxels' own entries and one box per brick); per cell of levels >= 1 its static mask (8), with
-  // dynamic objects its dynamic count and mask (12) and, from level 2, the
-  // time it was last seen whole (8).
+  // dynamic objects its dynamic count and mask (12) — masks and counts with
+  // the buffer only — and, from level 2, the time it was last seen whole (8).
   const std::uint64_t cells = s.cell_base[static_cast<std::size_t>(s.pyr.levels)];
   cost->bytes = nvox * (1 + (buffer ? 4 : 0)) + 4 * (offsets + entries) + boxes * sizeof(VoxBox) +
                 bricks * (sizeof(detail::Brick) + 16) + coarse * (sizeof(detail::Brick) + 8) + 16 * dyn_entries +
-                8 * cells + (bricks > 0 ? 12 * cells : 0) +
+                (buffer ? 8 * cells + (bricks > 0 ? 12 * cells : 0) : 0) +
                 (buffer ? 4 * (per_level[0] + 2 * (s.pyr.cells(1) + 1)) + 4 * boxes : 0) +
                 s.objs.size() * (sizeof(Obj) + 48) + (1u << 16);
   cost->scratch_bytes = nvox + 8 * s.objs.size() + 4 * boxes + 8 * bricks + 4 * s.cell_base[static_cast<std::size_t>(s.pyr.levels)];
@@ -1224,14 +1225,18 @@ Status Scene::create(const SceneDesc& desc, const SceneOptions& options, std::un
   if (s.options.occlusion_buffer > 0)
     detail::cover_with_boxes(s.res, s.vflags, Impl::kStaticOpaque, kOpaqueBoxSide, &s.opaque_boxes,
                              &s.opaque_owner);
-  build_static_masks(s);
-  if (s.options.occlusion_buffer > 0) build_brick_lists(s);
+  // The cell traversal's summaries: only the buffer's traversal reads them.
+  const bool cells = s.options.occlusion_buffer > 0;
+  if (cells) {
+    build_static_masks(s);
+    build_brick_lists(s);
+  }
 
   if (s.dynamic_count > 0) {
     s.bricks_res = s.pyr.res[1];
     s.bricks.resize(s.pyr.cells(1));
     for (int l = 2; l < s.pyr.levels; ++l) s.coarse_dyn[static_cast<std::size_t>(l)].resize(s.pyr.cells(l));
-    for (int l = 1; l < s.pyr.levels; ++l) {
+    for (int l = 1; cells && l < s.pyr.levels; ++l) {
       s.dyn_count[static_cast<std::size_t>(l)].assign(s.pyr.cells(l), 0);
       s.dyn_mask[static_cast<std::size_t>(l)].assign(s.pyr.cells(l), 0);
     }

@@ -228,7 +228,8 @@ struct Scene::Impl {
   /// Where each level's cells start in a flat array of all cells of levels
   /// 1 and up (Scratch::Impl::cell_seen).
   std::array<std::size_t, detail::kMaxLevels + 1> cell_base{};
-  /// Per level >= 1, per cell, a bit per child (x + 4y + 16z within the
+  /// With the buffer on (the cell traversal's), per level >= 1, per cell, a
+  /// bit per child (x + 4y + 16z within the
   /// cell) that holds static content: at level 1 a voxel with static
   /// objects in its own list, or static opaque; above, a child with a bit
   /// set or static objects stored in it. Empty space is skipped by them.
@@ -252,8 +253,9 @@ struct Scene::Impl {
   std::array<std::vector<detail::Brick>, detail::kMaxLevels> coarse_dyn;
   /// Live entries in coarse_dyn, all levels: readers skip those levels at 0.
   std::uint64_t coarse_dyn_live = 0;
-  /// Per level >= 1, per cell: live dynamic entries in it and in the cells
-  /// below it, and a bit per child whose count is not 0 (as static_mask).
+  /// With the buffer on, per level >= 1, per cell: live dynamic entries in
+  /// it and in the cells below it, and a bit per child whose count is not 0
+  /// (as static_mask).
   std::array<std::vector<std::uint32_t>, detail::kMaxLevels> dyn_count;
   std::array<std::vector<std::uint64_t>, detail::kMaxLevels> dyn_mask;
   /// Per brick: the latest scene time a frame saw a voxel of it (reached it

@@ -365,6 +365,9 @@ TEST(Cells, WithTheBufferOnDynamicObjectsAddNoOpacity) {
     } else {
       EXPECT_EQ(dyn_opaque, 0u);
     }
+    // The cell traversal's summaries exist for it alone.
+    EXPECT_EQ(s.static_mask[1].empty(), ob == 0) << "ob=" << ob;
+    EXPECT_EQ(s.dyn_count[1].empty(), ob == 0) << "ob=" << ob;
   }
 }
 
