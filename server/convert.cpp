@@ -175,18 +175,4 @@ void stats_to_proto(const FrameStats& in, v1::FrameStats* out) {
   out->set_retest_us(in.retest_us);
 }
 
-std::uint64_t estimate_scene_bytes(const SceneDesc& desc, const glm::ivec3& res, unsigned workers) {
-  const std::uint64_t voxels =
-      std::uint64_t(res.x) * std::uint64_t(res.y) * std::uint64_t(res.z);
-  // Per voxel: flags byte, CSR offset (4), dynamic opaque count (4 when any
-  // object moves), and 4 bytes of each worker's scratch layers; bricks and
-  // id lists per object. Deliberately a little high: the budget is a promise.
-  bool any_dynamic = false;
-  for (const ObjectDesc& o : desc.objects) any_dynamic |= o.dynamic;
-  const std::uint64_t per_voxel = 1 + 4 + (any_dynamic ? 4 : 0) + 4ull * workers;
-  const std::uint64_t bricks = (voxels + 63) / 64 * 16;
-  const std::uint64_t per_object = 256;
-  return voxels * per_voxel + bricks + desc.objects.size() * per_object + (1u << 16);
-}
-
 }  // namespace voxvis::server

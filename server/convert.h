@@ -35,8 +35,4 @@ Status moves_from_proto(const v1::MoveBatch& in, std::vector<Move>* out);
 void stats_to_proto(const FrameStats& in, v1::FrameStats* out);
 void vec_to_proto(const Vec3& in, v1::Vec3* out);
 
-/// Estimated bytes of a scene at resolution `res` served by `workers` worker
-/// threads: grid layers, per-worker scratch layers, id lists, objects.
-std::uint64_t estimate_scene_bytes(const SceneDesc& desc, const glm::ivec3& res, unsigned workers);
-
 }  // namespace voxvis::server

@@ -1,13 +1,33 @@
 #include "pool.h"
 
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
+#include <exception>
 #include <utility>
 
 namespace voxvis::server {
 
-WorkerPool::WorkerPool(unsigned threads) {
+WorkerPool::WorkerPool(unsigned threads, JobErrorHandler on_error, bool background)
+    : on_error_(std::move(on_error)) {
   if (threads == 0) threads = 1;
   workers_.reserve(threads);
-  for (unsigned i = 0; i < threads; ++i) workers_.emplace_back([this, i] { run(i); });
+  for (unsigned i = 0; i < threads; ++i) workers_.emplace_back([this, background] { run(background); });
+}
+
+void WorkerPool::run_guarded(Job& job, Scratch& scratch) {
+  std::string what;
+  try {
+    job(scratch);
+    return;
+  } catch (const std::exception& e) {
+    what = e.what();
+  } catch (...) {
+    what = "an exception that is not a std::exception";
+  }
+  failed_.fetch_add(1, std::memory_order_relaxed);
+  if (on_error_) on_error_(what);
 }
 
 WorkerPool::~WorkerPool() {
@@ -40,7 +60,10 @@ void WorkerPool::drain() {
   idle_cv_.wait(lock, [this] { return queued_ == 0 && running_ == 0; });
 }
 
-void WorkerPool::run(unsigned /*index*/) {
+void WorkerPool::run(bool background) {
+  // Linux schedules threads one by one: the nice value of this thread only.
+  // Best effort; without it the work is only less polite.
+  if (background) (void)setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), 10);
   Scratch scratch;
   std::unique_lock<std::mutex> lock(mu_);
   for (;;) {
@@ -61,7 +84,7 @@ void WorkerPool::run(unsigned /*index*/) {
     --queued_;
     ++running_;
     lock.unlock();
-    job(scratch);
+    run_guarded(job, scratch);
     job = nullptr;  // Release what the job holds before counting it done.
     lock.lock();
     --running_;
@@ -91,7 +114,8 @@ void Strand::run_some(Scratch& scratch) {
       job = std::move(queue_.front());
       queue_.pop_front();
     }
-    job(scratch);
+    // A job that throws must not leave the strand scheduled with no worker.
+    pool_.run_guarded(job, scratch);
   }
   std::lock_guard<std::mutex> lock(mu_);
   if (queue_.empty()) {

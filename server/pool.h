@@ -14,10 +14,17 @@
 // strand with work occupies one worker at a time and hands it back after a
 // few jobs, so one busy scene cannot starve the others. Each worker owns one
 // Scratch (per-frame working memory), reused across scenes.
+//
+// A job that throws does not end the process nor stop its strand: the pool
+// catches the exception, hands its text to the error handler and goes on.
+// That is the last line; the server's jobs catch their own engine calls
+// first, so that the call they serve is answered (INTERNAL).
 #pragma once
 
+#include <atomic>
 #include <condition_variable>
 #include <cstddef>
+#include <cstdint>
 #include <deque>
 #include <functional>
 #include <memory>
@@ -32,11 +39,17 @@
 namespace voxvis::server {
 
 using Job = std::function<void(Scratch&)>;
+/// Told the text of an exception a job let escape.
+using JobErrorHandler = std::function<void(const std::string&)>;
 
 class WorkerPool {
  public:
-  /// Starts `threads` workers (at least 1).
-  explicit WorkerPool(unsigned threads);
+  /// Starts `threads` workers (at least 1). `on_error` (may be empty) is
+  /// called, on the worker, for every exception a job lets escape. With
+  /// `background`, the workers run at a lower scheduling priority (nice 10),
+  /// so that they take what CPU the other threads leave: for long work that
+  /// must not delay answers.
+  explicit WorkerPool(unsigned threads, JobErrorHandler on_error = {}, bool background = false);
   /// Runs every job already submitted, then joins the workers.
   ~WorkerPool();
   WorkerPool(const WorkerPool&) = delete;
@@ -50,9 +63,13 @@ class WorkerPool {
   unsigned threads() const { return static_cast<unsigned>(workers_.size()); }
   /// Jobs queued and not yet started, all clients together.
   std::size_t queued() const;
+  /// Exceptions jobs let escape so far.
+  std::uint64_t failed() const { return failed_.load(std::memory_order_relaxed); }
+  /// Runs `job`, catching what it throws (counted, handed to the handler).
+  void run_guarded(Job& job, Scratch& scratch);
 
  private:
-  void run(unsigned index);
+  void run(bool background);
 
   mutable std::mutex mu_;
   std::condition_variable cv_;       // Guarded by mu_: new job or stop.
@@ -62,6 +79,8 @@ class WorkerPool {
   std::size_t queued_ = 0;           // Guarded by mu_.
   unsigned running_ = 0;             // Guarded by mu_.
   bool stop_ = false;                // Guarded by mu_.
+  JobErrorHandler on_error_;
+  std::atomic<std::uint64_t> failed_{0};
   std::vector<std::thread> workers_;
 };
 

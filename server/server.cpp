@@ -146,7 +146,16 @@ class ServerImpl final : public Server {
       log_("verify mode: " + std::to_string(vc.fraction) + " of frames at " + std::to_string(vc.width) + "x" +
            std::to_string(vc.height) + " on " + verifier_->renderer_info().summary());
     }
-    pool_ = std::make_unique<WorkerPool>(workers);
+    // A job that lets an exception escape (the service catches the engine's
+    // own) is logged and counted; the server goes on.
+    auto job_error = [this](const std::string& what) {
+      log_("internal error in a worker job: " + what);
+      metrics_->error("job", grpc::StatusCode::INTERNAL);
+    };
+    pool_ = std::make_unique<WorkerPool>(workers, job_error);
+    // Scene builds take seconds; on their own thread, at a lower priority,
+    // they never hold a frame worker nor delay one for long.
+    builds_ = std::make_unique<WorkerPool>(1, job_error, true);
     ServiceConfig sc;
     sc.scene_options = config_.scene_options;
     sc.memory_budget_bytes = budget;
@@ -154,7 +163,7 @@ class ServerImpl final : public Server {
     sc.max_view_lead_s = config_.max_view_lead_s;
     sc.max_time_step_s = config_.max_time_step_s;
     sc.max_calls = config_.max_calls;
-    service_ = std::make_unique<Service>(sc, *pool_, store_, tokens_, *metrics_, log_);
+    service_ = std::make_unique<Service>(sc, *pool_, *builds_, store_, tokens_, *metrics_, log_);
     service_->set_verifier(verifier_.get());
 
     // Scenes acknowledged in earlier runs, at their last saved positions.
@@ -274,6 +283,7 @@ class ServerImpl final : public Server {
                          std::chrono::milliseconds(static_cast<long>(config_.shutdown_grace_s * 1000));
       server_->Shutdown(grace);
     }
+    if (builds_) builds_->drain();  // Builds see the shutdown and stop early.
     if (pool_) pool_->drain();
     if (service_)
       log_(std::to_string(service_->dropped()) +
@@ -314,7 +324,8 @@ class ServerImpl final : public Server {
   SceneStore store_;
   std::unique_ptr<Metrics> metrics_;
   std::unique_ptr<Verifier> verifier_;  // Outlives the pool, whose jobs hand it frames.
-  std::unique_ptr<WorkerPool> pool_;
+  std::unique_ptr<WorkerPool> pool_;    // Frames, GetPvs, move batches.
+  std::unique_ptr<WorkerPool> builds_;  // CreateScene's parse and build.
   std::unique_ptr<Service> service_;
   std::unique_ptr<grpc::Server> server_;
   int port_ = 0;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <optional>
 #include <utility>
 
@@ -112,14 +113,19 @@ void SceneEntry::unsubscribe(const std::shared_ptr<WakeSink>& sink) {
 // ---------------------------------------------------------------------------
 // Service
 
-Service::Service(ServiceConfig config, WorkerPool& pool, SceneStore& store,
+Service::Service(ServiceConfig config, WorkerPool& pool, WorkerPool& builds, SceneStore& store,
                  const TokenTable& tokens, Metrics& metrics, Log log)
     : config_(std::move(config)),
       pool_(pool),
+      builds_(builds),
       store_(store),
       tokens_(tokens),
       metrics_(metrics),
-      log_(std::move(log)) {}
+      log_(std::move(log)),
+      fail_scene_([] {
+        const char* v = std::getenv("VOXVIS_TEST_FAIL_SCENE");
+        return std::string(v ? v : "");
+      }()) {}
 
 Service::~Service() = default;
 
@@ -222,29 +228,58 @@ void Service::fill_info(const SceneEntry& e, v1::SceneInfo* out) const {
 }
 
 grpc::Status Service::build_scene(const std::string& id, SceneDesc desc, const std::string& json,
-                                  bool from_json, bool persist) {
+                                  bool from_json, bool persist, const BuildControl* control) {
   const SceneOptions& opt = config_.scene_options;
-  const glm::ivec3 res = desc.grid ? *desc.grid : Scene::auto_resolution(desc, opt);
-  const std::int64_t voxels = std::int64_t{res.x} * res.y * res.z;
-  if (voxels > opt.max_voxels)
-    return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
-                        "grid: " + std::to_string(voxels) + " voxels exceed the limit of " +
-                            std::to_string(opt.max_voxels));
-  const std::uint64_t bytes = estimate_scene_bytes(desc, res, config_.workers);
+  if (desc.grid) {
+    // A grid over the voxel limit is refused as too large, not as wrong.
+    const glm::ivec3 g = *desc.grid;
+    const std::int64_t voxels = std::int64_t{g.x} * g.y * g.z;
+    if (g.x > 0 && g.y > 0 && g.z > 0 && voxels > opt.max_voxels)
+      return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                          "grid: " + std::to_string(voxels) + " voxels exceed the limit of " +
+                              std::to_string(opt.max_voxels));
+  }
+  // What the engine returns, as the call's status. `budget`: what the
+  // refusal says of the server's budget.
+  auto engine_status = [&](const Status& s, const std::string& budget) {
+    switch (s.code) {
+      case Status::Code::ResourceExhausted:
+        return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED, s.str() + budget);
+      case Status::Code::Cancelled:
+        if (shutting_down()) return shutting_down_status();
+        return grpc::Status(grpc::StatusCode::CANCELLED,
+                            "scene build stopped: the client went away or its deadline passed");
+      default:
+        return invalid(scene_create_error(s, from_json, json));
+    }
+  };
+  std::uint64_t available;
+  std::string budget_text;
   {
     std::lock_guard<std::mutex> lock(scenes_mu_);
-    if (deleting_.count(id))
-      return grpc::Status(grpc::StatusCode::ABORTED,
-                          "scene_id: '" + id + "' is being deleted; try again");
-    if (scenes_.count(id) || reserved_.count(id))
-      return grpc::Status(grpc::StatusCode::ALREADY_EXISTS, "scene_id: '" + id + "' exists");
+    if (grpc::Status s = id_free_locked(id); !s.ok()) return s;
+    available = config_.memory_budget_bytes > bytes_in_use_ ? config_.memory_budget_bytes - bytes_in_use_ : 0;
+    budget_text = "; memory budget " + mib(config_.memory_budget_bytes) + ", " + mib(bytes_in_use_) + " in use";
+  }
+  // The cost from the objects' footprints, before anything large is
+  // allocated; the count stops as soon as it passes what is left.
+  BuildControl ctl = control ? *control : BuildControl{};
+  ctl.max_bytes = std::max<std::uint64_t>(available, 1);
+  SceneCost cost;
+  if (Status s = Scene::estimate(desc, opt, &cost, &ctl); !s) return engine_status(s, budget_text);
+  // Each worker's scratch grows to the largest scene it serves: counted
+  // for every scene, a figure on the high side, as a budget should be.
+  const std::uint64_t bytes = cost.bytes + cost.scratch_bytes * config_.workers;
+  {
+    std::lock_guard<std::mutex> lock(scenes_mu_);
+    if (grpc::Status s = id_free_locked(id); !s.ok()) return s;
     if (bytes_in_use_ + bytes > config_.memory_budget_bytes)
       return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
-                          "scene needs about " + mib(bytes) + " at grid " +
-                              std::to_string(res.x) + "x" + std::to_string(res.y) + "x" +
-                              std::to_string(res.z) + "; memory budget " +
-                              mib(config_.memory_budget_bytes) + ", " + mib(bytes_in_use_) +
-                              " in use");
+                          "memory: the scene needs about " + mib(bytes) + " (grid " + std::to_string(cost.res.x) +
+                              "x" + std::to_string(cost.res.y) + "x" + std::to_string(cost.res.z) + ", " +
+                              std::to_string(cost.id_entries) + " id-list entries, scratch of " +
+                              std::to_string(config_.workers) + " workers); memory budget " +
+                              mib(config_.memory_budget_bytes) + ", " + mib(bytes_in_use_) + " in use");
     reserved_[id] = bytes;
     bytes_in_use_ += bytes;
   }
@@ -255,10 +290,11 @@ grpc::Status Service::build_scene(const std::string& id, SceneDesc desc, const s
   };
 
   auto entry = std::make_shared<SceneEntry>();
-  Status s = Scene::create(desc, opt, &entry->scene);
+  ctl.max_bytes = cost.bytes;
+  Status s = Scene::create(desc, opt, &entry->scene, &ctl);
   if (!s) {
     unreserve(false);
-    return invalid(scene_create_error(s, from_json, json));
+    return engine_status(s, budget_text);
   }
   if (persist) {
     if (Status w = store_.save_scene(id, json); !w) {
@@ -289,6 +325,14 @@ grpc::Status Service::build_scene(const std::string& id, SceneDesc desc, const s
     count = scenes_.size();
   }
   metrics_.scenes(count);
+  return grpc::Status::OK;
+}
+
+grpc::Status Service::id_free_locked(const std::string& id) const {
+  if (deleting_.count(id))
+    return grpc::Status(grpc::StatusCode::ABORTED, "scene_id: '" + id + "' is being deleted; try again");
+  if (scenes_.count(id) || reserved_.count(id))
+    return grpc::Status(grpc::StatusCode::ALREADY_EXISTS, "scene_id: '" + id + "' exists");
   return grpc::Status::OK;
 }
 
@@ -357,13 +401,25 @@ grpc::ServerUnaryReactor* Service::CreateScene(grpc::CallbackServerContext* ctx,
     finish_unary(r, "CreateScene", s);
     return reactor;
   }
-  // Parsing and building a grid take long: off the callback thread.
-  pool_.submit(ctx->peer(), [this, r, req, resp](Scratch&) {
+  // Parsing and building a grid take long: off the callback thread, and on
+  // the build thread, not a frame worker. A build stops when its client has
+  // gone, its deadline has passed or the server is stopping.
+  builds_.submit(ctx->peer(), [this, ctx, r, req, resp](Scratch&) {
+    if (ctx->IsCancelled()) {
+      count_dropped();
+      r->finish(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled"));
+      return;
+    }
     if (shutting_down()) {
       count_dropped();
       finish_unary(r, "CreateScene", shutting_down_status());
       return;
     }
+    const auto deadline = ctx->deadline();
+    BuildControl control;
+    control.cancelled = [this, ctx, deadline] {
+      return shutting_down() || ctx->IsCancelled() || std::chrono::system_clock::now() > deadline;
+    };
     SceneDesc desc;
     std::string json;
     bool from_json = false;
@@ -385,10 +441,12 @@ grpc::ServerUnaryReactor* Service::CreateScene(grpc::CallbackServerContext* ctx,
       finish_unary(r, "CreateScene", invalid(s));
       return;
     }
-    grpc::Status g = build_scene(req->scene_id(), std::move(desc), json, from_json, true);
+    grpc::Status g = build_scene(req->scene_id(), std::move(desc), json, from_json, true, &control);
     if (g.ok()) {
       fill_info(*find(req->scene_id()), resp);
       log_("created scene '" + req->scene_id() + "'");
+    } else if (g.error_code() == grpc::StatusCode::CANCELLED) {
+      log_("build of scene '" + req->scene_id() + "' stopped: its client went away or its deadline passed");
     }
     finish_unary(r, "CreateScene", g);
   });
@@ -523,13 +581,20 @@ grpc::ServerUnaryReactor* Service::GetPvs(grpc::CallbackServerContext* ctx,
       return;
     }
     Scene& scene = *e->scene;
-    const ViewerId v = scene.add_viewer();
     FrameResult result;
-    Status s = scene.frame(v, camera, e->view_time(t, config_.max_view_lead_s), scratch, &result,
-                           Scene::Clock::Latest);
-    scene.remove_viewer(v);
-    if (!s) {
-      finish_unary(r, "GetPvs", invalid(s));
+    grpc::Status g = guarded(*e, "frame", [&] {
+      // A one-frame viewer, removed however the frame ends.
+      struct OneFrameViewer {
+        Scene& scene;
+        const ViewerId id = scene.add_viewer();
+        ~OneFrameViewer() { scene.remove_viewer(id); }
+      } viewer{scene};
+      Status s = scene.frame(viewer.id, camera, e->view_time(t, config_.max_view_lead_s), scratch, &result,
+                             Scene::Clock::Latest);
+      return s ? grpc::Status::OK : invalid(s);
+    });
+    if (!g.ok()) {
+      finish_unary(r, "GetPvs", g);
       return;
     }
     e->after_frame(result);

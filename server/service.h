@@ -19,6 +19,7 @@
 #include <mutex>
 #include <optional>
 #include <set>
+#include <stdexcept>
 #include <string>
 #include <unordered_set>
 #include <vector>
@@ -61,7 +62,7 @@ struct SceneEntry {
   std::shared_ptr<Strand> strand;
   std::unique_ptr<Scene> scene;
   std::shared_ptr<SceneMetrics> metrics;
-  std::uint64_t memory_bytes = 0;
+  std::uint64_t memory_bytes = 0;  ///< Reserved in the budget: Scene::estimate's bytes and scratch.
   GridSpec grid;  // Immutable copies for statistics.
   std::uint32_t objects = 0;
   std::uint32_t dynamic_objects = 0;
@@ -143,8 +144,10 @@ using RawVisibilityService = v1::Visibility::WithRawCallbackMethod_CreateScene<
 class Service final : public RawVisibilityService {
  public:
   using Log = std::function<void(const std::string&)>;
-  Service(ServiceConfig config, WorkerPool& pool, SceneStore& store, const TokenTable& tokens,
-          Metrics& metrics, Log log);
+  /// `pool` runs frames and move batches; `builds` runs scene builds
+  /// (CreateScene), which must never wait behind frames nor hold their workers.
+  Service(ServiceConfig config, WorkerPool& pool, WorkerPool& builds, SceneStore& store,
+          const TokenTable& tokens, Metrics& metrics, Log log);
   ~Service() override;
 
   /// Loads a scene at start (data directory or --scene file). Runs on the
@@ -208,6 +211,27 @@ class Service final : public RawVisibilityService {
                      const FrameResult& result);
   /// Ends a unary call, counting an error.
   void finish_unary(UnaryCall* r, const char* method, const grpc::Status& s);
+  /// Runs `f` (returns grpc::Status): the engine's part of a frame or a move
+  /// batch of scene `e`. An exception it throws (a bug, or memory exhausted)
+  /// becomes INTERNAL for this one call, logged with `what`; the process and
+  /// every other call go on. With VOXVIS_TEST_FAIL_SCENE=<id> in the
+  /// environment, every such call of scene <id> throws: the fault the
+  /// tests inject to check this path.
+  template <class F>
+  grpc::Status guarded(const SceneEntry& e, const char* what, F&& f) {
+    std::string text;
+    try {
+      if (!fail_scene_.empty() && e.id == fail_scene_)
+        throw std::runtime_error("fault injected (VOXVIS_TEST_FAIL_SCENE)");
+      return f();
+    } catch (const std::exception& x) {
+      text = x.what();
+    } catch (...) {
+      text = "an exception that is not a std::exception";
+    }
+    log_(std::string("internal error in a ") + what + " of scene '" + e.id + "': " + text);
+    return grpc::Status(grpc::StatusCode::INTERNAL, std::string("internal error in the ") + what + ": " + text);
+  }
 
  private:
   /// The scene, or null after finishing the call (INVALID_ARGUMENT for an
@@ -217,16 +241,24 @@ class Service final : public RawVisibilityService {
   void fill_info(const SceneEntry& e, v1::SceneInfo* out) const;
   /// Checks the budget, builds, persists (when `persist`) and registers a
   /// scene. INVALID_ARGUMENT, ALREADY_EXISTS, RESOURCE_EXHAUSTED or INTERNAL.
+  /// The cost comes from Scene::estimate (the objects' footprints) before
+  /// anything large is allocated; `control` (may be null) cancels the build
+  /// (CANCELLED, or UNAVAILABLE when the server is stopping).
   grpc::Status build_scene(const std::string& id, SceneDesc desc, const std::string& json,
-                           bool from_json, bool persist);
+                           bool from_json, bool persist, const BuildControl* control = nullptr);
+  /// OK when no scene has or is taking the id: else ALREADY_EXISTS, or
+  /// ABORTED while it is being deleted.
+  grpc::Status id_free_locked(const std::string& id) const;
 
   ServiceConfig config_;
   WorkerPool& pool_;
+  WorkerPool& builds_;
   SceneStore& store_;
   const TokenTable& tokens_;
   Metrics& metrics_;
   Log log_;
   Verifier* verifier_ = nullptr;
+  const std::string fail_scene_;  // VOXVIS_TEST_FAIL_SCENE; empty: none.
 
   mutable std::mutex scenes_mu_;
   std::map<std::string, std::shared_ptr<SceneEntry>> scenes_;  // Guarded by scenes_mu_.

@@ -317,10 +317,12 @@ class ViewReactor final
       // The scene's clock is shared: a time behind it is taken as it, one
       // too far beyond the simulation's as its limit.
       const double t = e.view_time(p.t, svc_->config().max_view_lead_s);
-      Status s = scene.frame(viewer_, p.camera, t, scratch, &ready->result, Scene::Clock::Latest);
+      error = svc_->guarded(e, "frame", [&] {
+        Status s = scene.frame(viewer_, p.camera, t, scratch, &ready->result, Scene::Clock::Latest);
+        return s ? grpc::Status::OK : invalid(s);
+      });
       ready->t = ready->result.t;
-      if (!s) {
-        error = invalid(s);
+      if (!error.ok()) {
         ready.reset();
       } else {
         e.after_frame(ready->result);
@@ -512,10 +514,13 @@ class SimReactor final
     }
     Scene& scene = *e.scene;
     MoveReport report;
-    Status s = scene.apply_moves(t, moves, &report, Scene::Clock::Latest);
+    const grpc::Status g = svc_->guarded(e, "move batch", [&] {
+      Status s = scene.apply_moves(t, moves, &report, Scene::Clock::Latest);
+      return s ? grpc::Status::OK : invalid(Status::Error("batch." + s.field, s.message));
+    });
     const double at = report.t;
-    if (!s) {
-      job_done(std::nullopt, invalid(Status::Error("batch." + s.field, s.message)));
+    if (!g.ok()) {
+      job_done(std::nullopt, g);
       return;
     }
     e.moves_applied.fetch_add(report.applied, std::memory_order_relaxed);

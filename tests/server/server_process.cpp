@@ -560,6 +560,21 @@ long ServerProcess::peak_rss_kib() const { return proc_status_kib(pid(), "VmHWM"
 
 long ServerProcess::rss_kib() const { return proc_status_kib(pid(), "VmRSS"); }
 
+double ServerProcess::cpu_seconds() const {
+  if (pid() <= 0) return -1.0;
+  // /proc/PID/stat: the command name is in parentheses and may hold spaces;
+  // utime and stime are the 14th and 15th fields, in clock ticks.
+  const std::string stat = slurp("/proc/" + std::to_string(pid()) + "/stat");
+  const std::size_t close = stat.rfind(')');
+  if (close == std::string::npos) return -1.0;
+  std::istringstream in(stat.substr(close + 2));
+  std::string field;
+  double ticks = 0.0;
+  for (int i = 3; i <= 15 && in >> field; ++i)
+    if (i >= 14) ticks += std::stod(field);
+  return ticks / static_cast<double>(sysconf(_SC_CLK_TCK));
+}
+
 std::string ServerProcess::log() const { return slurp(dir_ + "/server.log"); }
 
 int ServerProcess::metrics_port() const {

@@ -318,6 +318,9 @@ class ServerProcess {
   long rss_kib() const;
   /// The server's peak resident set size so far (VmHWM), KiB; -1 when unreadable.
   long peak_rss_kib() const;
+  /// CPU time the server has used so far (user and system, all threads),
+  /// seconds; -1 when unreadable.
+  double cpu_seconds() const;
   /// The server's stderr so far (all runs).
   std::string log() const;
   /// The port of the metrics endpoint the log announced (with --metrics

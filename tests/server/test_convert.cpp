@@ -147,17 +147,5 @@ TEST(Convert, MovesChecked) {
   EXPECT_EQ(moves_from_proto(b, &moves).field, "batch.moves[1].center");
 }
 
-TEST(Convert, MemoryEstimateGrowsWithVoxelsAndWorkers) {
-  SceneDesc desc;
-  const std::uint64_t small = estimate_scene_bytes(desc, glm::ivec3(10), 2);
-  const std::uint64_t big = estimate_scene_bytes(desc, glm::ivec3(100), 2);
-  const std::uint64_t more_workers = estimate_scene_bytes(desc, glm::ivec3(100), 8);
-  EXPECT_GT(big, small);
-  EXPECT_GT(more_workers, big);
-  // At least the bytes the grid's layers certainly take: a flags byte and a
-  // CSR offset per voxel, and each worker's 4 bytes of scratch per voxel.
-  EXPECT_GE(big, 1000000ull * (1 + 4 + 4 * 2));
-}
-
 }  // namespace
 }  // namespace voxvis::server

@@ -1,10 +1,13 @@
 // The worker pool and strands: a scene's jobs never overlap and run in the
-// order posted; different strands run in parallel; drain waits for all.
+// order posted; different strands run in parallel; drain waits for all; a
+// job that throws stops neither the pool nor its strand.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <mutex>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
@@ -87,6 +90,38 @@ TEST(WorkerPool, DrainWaitsForJobsThatPostMoreJobs) {
   }
   pool.drain();
   EXPECT_EQ(done.load(), 50);
+}
+
+// Before the pool caught them, the first throw ended the process
+// (std::terminate) and a throwing strand job left the strand stuck.
+TEST(WorkerPool, AJobThatThrowsIsReportedAndTheRestStillRun) {
+  std::mutex mu;
+  std::vector<std::string> errors;  // Guarded by mu.
+  std::atomic<int> done{0};
+  {
+    WorkerPool pool(2, [&](const std::string& what) {
+      std::lock_guard<std::mutex> lock(mu);
+      errors.push_back(what);
+    });
+    auto strand = std::make_shared<Strand>(pool, "scene");
+    for (int i = 0; i < 20; ++i) {
+      pool.submit("c", [&, i](Scratch&) {
+        if (i % 5 == 0) throw std::runtime_error("job " + std::to_string(i));
+        done.fetch_add(1);
+      });
+      strand->post([&, i](Scratch&) {
+        if (i % 4 == 0) throw 42;  // Not a std::exception.
+        done.fetch_add(1);
+      });
+    }
+    pool.drain();
+    EXPECT_EQ(pool.failed(), 4u + 5u);
+  }
+  EXPECT_EQ(done.load(), 16 + 15);
+  std::lock_guard<std::mutex> lock(mu);
+  ASSERT_EQ(errors.size(), 9u);
+  EXPECT_EQ(std::count(errors.begin(), errors.end(), "job 5"), 1);
+  EXPECT_EQ(std::count(errors.begin(), errors.end(), "an exception that is not a std::exception"), 5);
 }
 
 TEST(WorkerPool, DestructorRunsQueuedJobs) {
