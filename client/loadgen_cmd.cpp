@@ -101,6 +101,8 @@ class Histogram {
 /// State shared by all viewers and the pacing thread.
 struct Shared {
   Histogram latency;
+  Histogram first_answer;  ///< From a stream's first send to its first answer.
+  Histogram gap;           ///< Between two answers of one stream (and before the first).
   std::atomic<std::uint64_t> frames{0};          ///< Answers received.
   std::atomic<std::uint64_t> server_skipped{0};  ///< Sum of frames_skipped.
   std::atomic<std::uint64_t> send_skipped{0};
@@ -145,6 +147,7 @@ class Viewer final : public grpc::ClientBidiReactor<v1::ViewRequest, v1::ViewRes
         request_.clear_scene_id();
         request_.clear_encoding();
       }
+      if (first_) first_sent_ = Clock::now();
       first_ = false;
       request_.set_frame(frame);
       request_.set_t(t);
@@ -200,6 +203,13 @@ class Viewer final : public grpc::ClientBidiReactor<v1::ViewRequest, v1::ViewRes
         pending_.pop_front();
         found = true;
       }
+      // The first gap runs from the first send: a stream the server makes
+      // wait for its first answer shows there.
+      const bool first_answer = last_answer_ == Clock::time_point{};
+      const Clock::time_point since = first_answer ? first_sent_ : last_answer_;
+      shared_->gap.add(std::chrono::duration<double, std::micro>(now - since).count());
+      if (first_answer) shared_->first_answer.add(std::chrono::duration<double, std::micro>(now - first_sent_).count());
+      last_answer_ = now;
     }
     if (found) shared_->latency.add(std::chrono::duration<double, std::micro>(now - sent).count());
     shared_->frames.fetch_add(1, std::memory_order_relaxed);
@@ -265,6 +275,8 @@ class Viewer final : public grpc::ClientBidiReactor<v1::ViewRequest, v1::ViewRes
   bool write_failed_ = false;  // Guarded by mu_.
   bool hold_released_ = false; // Guarded by mu_.
   std::deque<std::pair<std::uint64_t, Clock::time_point>> pending_;  // Guarded by mu_.
+  Clock::time_point first_sent_{};   // Guarded by mu_.
+  Clock::time_point last_answer_{};  // Guarded by mu_: none yet when zero.
 };
 
 /// Cameras of the viewers: looped from a frames file, or an orbit.
@@ -498,6 +510,11 @@ int run_loadgen(const LoadgenArgs& args) {
   const double p50 = shared->latency.percentile_us(50.0) / 1000.0;
   const double p99 = shared->latency.percentile_us(99.0) / 1000.0;
   const double max_ms = shared->latency.max_us() / 1000.0;
+  const std::uint64_t answered_streams = shared->first_answer.count();
+  const double first_p50 = shared->first_answer.percentile_us(50.0) / 1000.0;
+  const double first_max = shared->first_answer.max_us() / 1000.0;
+  const double gap_p99 = shared->gap.percentile_us(99.0) / 1000.0;
+  const double gap_max = shared->gap.max_us() / 1000.0;
   std::string errors_text;
   nlohmann::json errors_json = nlohmann::json::object();
   for (const auto& [name, count] : shared->errors) {
@@ -513,12 +530,15 @@ int run_loadgen(const LoadgenArgs& args) {
       "loadgen: %d viewers at %g Hz for %g s on scene %s (%s, %d connection%s)\n"
       "  frames answered  %s (%.1f per second)\n"
       "  latency ms       p50 %.3f, p99 %.3f, max %.3f\n"
+      "  first answer ms  p50 %.3f, max %.3f (%s of %d streams answered)\n"
+      "  answer gaps ms   p99 %.3f, max %.3f\n"
       "  server skipped   %s frames\n"
       "  send skipped     %s ticks\n"
       "  errors           %s\n",
       args.viewers, args.rate, args.duration, args.scene.c_str(),
       args.delta ? "PVS_DELTA" : "PVS_FULL", connections, connections == 1 ? "" : "s",
-      with_commas(frames).c_str(), fps, p50, p99, max_ms,
+      with_commas(frames).c_str(), fps, p50, p99, max_ms, first_p50, first_max,
+      with_commas(answered_streams).c_str(), args.viewers, gap_p99, gap_max,
       with_commas(shared->server_skipped.load()).c_str(),
       with_commas(shared->send_skipped.load()).c_str(), errors_text.c_str());
   std::fflush(stdout);
@@ -533,6 +553,11 @@ int run_loadgen(const LoadgenArgs& args) {
         {"p50_ms", p50},
         {"p99_ms", p99},
         {"max_ms", max_ms},
+        {"streams_answered", answered_streams},
+        {"first_answer_p50_ms", first_p50},
+        {"first_answer_max_ms", first_max},
+        {"gap_p99_ms", gap_p99},
+        {"gap_max_ms", gap_max},
         {"server_skipped", shared->server_skipped.load()},
         {"send_skipped", shared->send_skipped.load()},
         {"errors", errors_json},

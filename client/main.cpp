@@ -330,7 +330,9 @@ int run(int argc, char** argv) {
   loadgen_cmd->add_flag("-q,--quiet", gen_load.quiet, "No progress line on stderr");
   loadgen_cmd->footer(
       "Latency: from sending a frame to receiving the answer carrying its number;\n"
-      "frames per second: answers over the time from the start to the last answer.\n"
+      "frames per second: answers over the time from the start to the last answer;\n"
+      "first answer: from a stream's first send to its first answer; answer gaps:\n"
+      "between two answers of one stream (the first gap is the first answer's wait).\n"
       "A tick that finds the viewer's previous write still outstanding is skipped\n"
       "(\"send skipped\"). Report on stdout; exit 2 if a stream ended with an error.");
 

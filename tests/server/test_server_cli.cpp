@@ -282,6 +282,11 @@ TEST(ServerCli, LoadgenManyViewersOfOneScene) {
   EXPECT_EQ(j.at("viewers"), 6);
   EXPECT_TRUE(j.at("errors").empty()) << j.dump();
   EXPECT_GT(j.at("frames").get<double>(), 6.0);
+  // Every stream was answered; a stream's first gap is its wait for the
+  // first answer.
+  EXPECT_EQ(j.at("streams_answered"), 6);
+  EXPECT_GT(j.at("first_answer_max_ms").get<double>(), 0.0);
+  EXPECT_GE(j.at("gap_max_ms").get<double>(), j.at("first_answer_max_ms").get<double>());
   v1::SceneInfo info;
   ASSERT_TRUE(server.api().stats("paper", &info).ok());
   EXPECT_GE(static_cast<double>(info.frames_served()), j.at("frames").get<double>());

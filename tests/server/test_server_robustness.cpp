@@ -5,6 +5,7 @@
 // and exits 0.
 #include <signal.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstdlib>
@@ -15,6 +16,7 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "server_process.h"
 #include "voxvis/format.h"
@@ -308,6 +310,60 @@ TEST(ServerRobustness, FiveHundredConcurrentViewers) {
   v1::SceneInfo info;
   ASSERT_TRUE(api.stats("s", &info).ok());
   EXPECT_EQ(info.frames_served(), static_cast<std::uint64_t>(kStreams * kFrames));
+  EXPECT_EQ(server.terminate(), 0);
+}
+
+// A viewer already served, then 1,000 new View streams over 10 connections
+// (the load generator): the viewer keeps its answers and every new stream
+// gets its first one. New streams' frames wait behind the connections
+// already taking turns on the workers (pool.h), never ahead of them. A
+// liveness bound, not a timing target: docs/performance.md has the figures.
+TEST(ServerRobustness, AThousandNewStreamsDoNotStarveAViewerAlreadyServed) {
+  ServerProcess server;
+  ASSERT_TRUE(server.start());
+  const Api api = server.api();
+  v1::SceneDescription d;
+  to_proto(lattice_scene(200, 32, 3), &d);
+  ASSERT_TRUE(api.create_scene("s", d).ok());
+  std::atomic<bool> burst_over{false};
+  std::vector<double> gaps;
+  bool answered = true;
+  std::thread viewer([&] {
+    ViewStream view(api, "s");
+    std::uint64_t frame = 0;
+    auto last = std::chrono::steady_clock::now();
+    while (!burst_over.load()) {
+      v1::ViewResponse r;
+      ++frame;
+      if (!view.frame(frame, 0.0, near_camera(frame), &r)) {
+        answered = false;
+        break;
+      }
+      const auto now = std::chrono::steady_clock::now();
+      gaps.push_back(Seconds(now - last).count());
+      last = now;
+      std::this_thread::sleep_for(std::chrono::milliseconds(16));  // About 60 Hz.
+    }
+    view.finish();
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  const std::string report = server.path("burst.json");
+  const ProcessResult r = run_program({VOXVIS_CLI, "loadgen", "--server", server.address(), "--scene", "s",
+                                       "--viewers", "1000", "--connections", "10", "--rate", "2",
+                                       "--duration", "3", "--json", report, "-q"},
+                                      server.dir(), Seconds(120));
+  burst_over.store(true);
+  viewer.join();
+  ASSERT_EQ(r.status, 0) << r.err;
+  const nlohmann::json burst = nlohmann::json::parse(slurp(report), nullptr, false);
+  ASSERT_FALSE(burst.is_discarded());
+  EXPECT_EQ(burst.at("streams_answered"), 1000) << burst.dump();
+  EXPECT_TRUE(answered);
+  ASSERT_GT(gaps.size(), 10u);
+  std::sort(gaps.begin(), gaps.end());
+  std::printf("viewer beside 1,000 new streams: %zu answers, gap p50 %.1f ms, max %.1f ms; burst: %s\n",
+              gaps.size(), 1e3 * gaps[gaps.size() / 2], 1e3 * gaps.back(), burst.dump().c_str());
+  EXPECT_LT(gaps.back(), 2.0);
   EXPECT_EQ(server.terminate(), 0);
 }
 
