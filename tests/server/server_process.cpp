@@ -848,6 +848,22 @@ std::string wall_scene_json() {
 
 Camera wall_camera() { return look(Vec3(10, 10, 1), Vec3(0, 0, 1)); }
 
+SceneDesc huge_footprint_scene(int count) {
+  SceneDesc d;
+  d.bounds_min = Vec3(-1e12);
+  d.bounds_max = Vec3(1e12);
+  Rng rng(0x5e1f);
+  for (int i = 0; i < count; ++i) {
+    ObjectDesc o;
+    o.id = static_cast<ObjectId>(i + 1);
+    o.shape = Shape::Sphere;
+    o.center = Vec3(rng.uniform(-1e12, 1e12), rng.uniform(-1e12, 1e12), rng.uniform(-1e12, 1e12));
+    o.radius = 1e12;
+    d.objects.push_back(o);
+  }
+  return d;
+}
+
 SceneDesc lattice_scene(int count, int grid, std::uint64_t seed) {
   test::Rng rng(seed);
   SceneDesc d;

@@ -377,4 +377,9 @@ Camera wall_camera();
 /// occluders: from outside looking in, nearly all are visible.
 SceneDesc lattice_scene(int count, int grid, std::uint64_t seed);
 
+/// `count` spheres of radius 1e12 scattered in bounds of +-1e12, no grid:
+/// each touches most of the automatic grid, so that the scene's id lists
+/// hold about objects x voxels entries (the careless admin's scene).
+SceneDesc huge_footprint_scene(int count);
+
 }  // namespace voxvis::servertest

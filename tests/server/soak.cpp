@@ -1,5 +1,7 @@
 #include "soak.h"
 
+#include "extreme_cameras.h"
+
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -34,6 +36,11 @@ const char* const kRaceDelete = "DeleteScene racing";
 const char* const kRaceFrame = "GetPvs racing";
 const char* const kMalformedPvs = "malformed GetPvs";
 const char* const kMalformedView = "malformed View";
+const char* const kExtremeCamera = "GetPvs extreme camera";
+const char* const kCameraBeyond = "GetPvs camera beyond bounds";
+const char* const kExtremeView = "View extreme cameras";
+const char* const kHugeCreate = "CreateScene huge footprint";
+const char* const kBurst = "View burst of new streams";
 
 double ms(Clock::duration d) { return std::chrono::duration<double, std::milli>(d).count(); }
 
@@ -397,6 +404,76 @@ void malformed(const Soak& s) {
   });
 }
 
+// Cameras at the documented bounds and beyond them, by GetPvs and on View
+// streams: the accepted ones are answered, the others refused naming the
+// field; none may take the server down.
+void cameras(const Soak& s) {
+  s.tally.expect(kExtremeCamera, {C::OK});
+  s.tally.expect(kCameraBeyond, {C::INVALID_ARGUMENT});
+  s.tally.expect(kExtremeView, {C::OK});
+  const Api api = s.server.api();
+  Rng rng(s.options.seed ^ 0xca3e);
+  const double beyond_fov[] = {test::kDenormal, 1e-322, 1e-300, 0.0, 180.0};
+  s.loop(2, [&](int round) {
+    v1::GetPvsResponse r;
+    s.tally.record(kExtremeCamera, api.get_pvs(kScene, s.now_t(), test::extreme_camera(rng, s.scene), &r));
+    Camera bad = orbit(s.now_t());
+    bad.fov_y_deg = beyond_fov[static_cast<std::size_t>(round) % std::size(beyond_fov)];
+    const grpc::Status refused = api.get_pvs(kScene, s.now_t(), bad, &r);
+    s.tally.record(kCameraBeyond, refused);
+    if (!refused.ok() && refused.error_message().find("camera.fov_y_deg") == std::string::npos)
+      s.tally.note(kCameraBeyond, "the refusal does not name camera.fov_y_deg: " + refused.error_message());
+    if (round % 10 != 0) return;
+    ViewStream v(api, kScene, v1::PVS_DELTA, Seconds(30));
+    const double t0 = s.now_t();
+    for (std::uint64_t f = 1; f <= 5; ++f) {
+      v1::ViewResponse vr;
+      if (!v.frame(f, t0 + 0.001 * static_cast<double>(f), test::extreme_camera(rng, s.scene), &vr)) break;
+    }
+    s.tally.record(kExtremeView, v.finish());
+  });
+}
+
+// Creates whose objects cover the grid many times over: refused by the
+// footprint estimate (over the soak server's --memory-budget-mib), or, with
+// a short deadline, stopped when it passes. Never registered, never built
+// on a frame worker.
+void huge_creates(const Soak& s) {
+  s.tally.expect(kHugeCreate, {C::RESOURCE_EXHAUSTED, C::DEADLINE_EXCEEDED, C::CANCELLED});
+  v1::SceneDescription huge;
+  to_proto(huge_footprint_scene(100000), &huge);
+  s.loop(40, [&](int round) {
+    const Api admin = s.server.api();
+    grpc::ClientContext ctx;
+    admin.prepare(&ctx, round % 2 ? Seconds(0.3) : Seconds(30));
+    v1::CreateSceneRequest req;
+    req.set_scene_id("huge");
+    *req.mutable_description() = huge;
+    v1::SceneInfo info;
+    s.tally.record(kHugeCreate, admin.stub().CreateScene(&ctx, req, &info));
+  });
+}
+
+// A hundred new View streams at once over two new connections, each
+// sending one frame: every one answered.
+void stream_bursts(const Soak& s) {
+  s.tally.expect(kBurst, {C::OK});
+  s.loop(100, [&](int) {
+    const Api a = s.server.api(), b = s.server.api();
+    std::vector<std::unique_ptr<ViewStream>> streams;
+    const double t = s.now_t();
+    for (int i = 0; i < 100; ++i) {
+      streams.push_back(std::make_unique<ViewStream>(i % 2 ? a : b, kScene, v1::PVS_FULL, Seconds(60)));
+      streams.back()->send(1, t, orbit(t + 0.01 * i));
+    }
+    for (auto& v : streams) {
+      v1::ViewResponse r;
+      if (!v->read(&r)) s.tally.note(kBurst, "a new stream's first frame was not answered");
+      s.tally.record(kBurst, v->finish());
+    }
+  });
+}
+
 struct Loop {
   const char* name;
   void (*run)(const Soak&);
@@ -404,7 +481,8 @@ struct Loop {
 const Loop kLoops[] = {{"bad-times", bad_times},     {"bad-ids", bad_ids},
                        {"floods", floods},           {"view-drops", view_drops},
                        {"simulations", simulations}, {"races", races},
-                       {"malformed", malformed}};
+                       {"malformed", malformed},     {"cameras", cameras},
+                       {"huge-creates", huge_creates}, {"stream-bursts", stream_bursts}};
 
 double mib(long kib) { return static_cast<double>(kib) / 1024.0; }
 

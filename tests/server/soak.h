@@ -38,7 +38,7 @@
 namespace voxvis::servertest {
 
 /// The names of the hostile loops: bad-times, bad-ids, floods, view-drops,
-/// simulations, races, malformed.
+/// simulations, races, malformed, cameras, huge-creates, stream-bursts.
 std::vector<std::string> all_hostile_loops();
 
 struct SoakOptions {

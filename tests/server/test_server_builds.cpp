@@ -31,23 +31,9 @@ std::string show(const grpc::Status& s) {
   return std::to_string(static_cast<int>(s.error_code())) + " " + s.error_message();
 }
 
-/// `count` spheres of radius 1e12 scattered in bounds of +-1e12: each
-/// touches most of the automatic grid.
 v1::SceneDescription huge_spheres(int count) {
-  SceneDesc d;
-  d.bounds_min = Vec3(-1e12);
-  d.bounds_max = Vec3(1e12);
-  Rng rng(0x5e1f);
-  for (int i = 0; i < count; ++i) {
-    ObjectDesc o;
-    o.id = static_cast<ObjectId>(i + 1);
-    o.shape = Shape::Sphere;
-    o.center = Vec3(rng.uniform(-1e12, 1e12), rng.uniform(-1e12, 1e12), rng.uniform(-1e12, 1e12));
-    o.radius = 1e12;
-    d.objects.push_back(o);
-  }
   v1::SceneDescription out;
-  to_proto(d, &out);
+  to_proto(huge_footprint_scene(count), &out);
   return out;
 }
 

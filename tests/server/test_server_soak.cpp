@@ -88,14 +88,16 @@ std::string joined(const std::vector<std::string>& lines) {
 }
 
 // A hostile mix (bad times, bad ids, floods, dropped streams, bad and too
-// fast moves, create/delete races, malformed bytes) beside one viewer at
+// fast moves, create/delete races, malformed bytes, extreme cameras, creates
+// of huge footprints, bursts of new streams) beside one viewer at
 // 30 Hz: the server stays up and exits cleanly, the viewer is answered to
 // its last frame, every hostile call ends with a code its kind allows, the
 // races keep their invariants, and memory stays within a bound.
 TEST(Soak, HostileMixBesideAWellBehavedViewer) {
   // A busy position saver (the simulations move objects all the time) for
   // the create/delete races to meet.
-  ServerProcess server({"--save-period", "0.05"});
+  // A budget the soak's scenes fit in many times, and the huge creates not.
+  ServerProcess server({"--save-period", "0.05", "--memory-budget-mib", "512"});
   ASSERT_TRUE(server.start());
   SoakOptions options;
   options.duration = duration_from_env(Seconds(15));
