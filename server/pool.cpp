@@ -9,6 +9,10 @@
 
 namespace voxvis::server {
 
+void lower_this_thread_priority() {
+  (void)setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), 10);
+}
+
 WorkerPool::WorkerPool(unsigned threads, JobErrorHandler on_error, bool background)
     : on_error_(std::move(on_error)) {
   if (threads == 0) threads = 1;
@@ -61,9 +65,7 @@ void WorkerPool::drain() {
 }
 
 void WorkerPool::run(bool background) {
-  // Linux schedules threads one by one: the nice value of this thread only.
-  // Best effort; without it the work is only less polite.
-  if (background) (void)setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), 10);
+  if (background) lower_this_thread_priority();
   Scratch scratch;
   std::unique_lock<std::mutex> lock(mu_);
   for (;;) {

@@ -38,6 +38,13 @@
 
 namespace voxvis::server {
 
+/// Lowers the calling thread's scheduling priority to nice 10, so that it
+/// takes only the CPU that threads at the normal priority leave. Linux keeps
+/// a nice value per thread, and threads created afterwards by this one (an
+/// OpenGL driver's, say) inherit it. Best effort: without it the work is only
+/// less polite.
+void lower_this_thread_priority();
+
 using Job = std::function<void(Scratch&)>;
 /// Told the text of an exception a job let escape.
 using JobErrorHandler = std::function<void(const std::string&)>;

@@ -8,6 +8,7 @@
 #include <iterator>
 #include <utility>
 
+#include "pool.h"
 #include "voxvis/format.h"
 #include "voxvis/raycast.h"
 
@@ -32,6 +33,9 @@ std::unique_ptr<Verifier> Verifier::start(const VerifyConfig& config, Log log, s
   std::promise<std::string> ready;
   std::future<std::string> outcome = ready.get_future();
   v->thread_ = std::thread([raw = v.get(), ready = std::move(ready)]() mutable {
+    // Before the context exists: llvmpipe's rendering threads, made with it,
+    // inherit the lower priority, and checking never takes CPU from answers.
+    lower_this_thread_priority();
     std::string err;
     std::unique_ptr<render::Renderer> r = render::Renderer::create(raw->config_.context, &err);
     if (!r) err = "EGL: " + err;
