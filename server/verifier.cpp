@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <exception>
 #include <future>
 #include <iterator>
 #include <utility>
@@ -56,7 +57,15 @@ std::unique_ptr<Verifier> Verifier::start(const VerifyConfig& config, Log log, s
       raw->queue_.pop_front();
       raw->busy_ = true;
       lock.unlock();
-      raw->verify(job, *r);
+      // A check that throws (memory exhausted, a driver error) drops that
+      // frame, counted and logged; it never ends the process.
+      try {
+        raw->verify(job, *r);
+      } catch (const std::exception& e) {
+        raw->log_(std::string("verify: scene '") + job.scene + "' frame " + std::to_string(job.frame) +
+                  " not verified: " + e.what());
+        raw->dropped(job.metrics.get());
+      }
       lock.lock();
       raw->busy_ = false;
       raw->cv_.notify_all();

@@ -117,8 +117,13 @@ TEST(Builds, LongBuildsDoNotDelayViewersOfOtherScenes) {
   const auto end = last + std::chrono::seconds(4);
   while (Clock::now() < end) {
     v1::GetPvsResponse r;
-    ASSERT_TRUE(viewer.get_pvs("w", 0.0, wall_camera(), &r).ok());
+    const grpc::Status st = viewer.get_pvs("w", 0.0, wall_camera(), &r);
     const auto now = Clock::now();
+    if (!st.ok()) {
+      ADD_FAILURE() << "the viewer's frame: " << show(st);  // The builders are still joined.
+      worst = std::max(worst, Seconds(now - last).count());
+      break;
+    }
     worst = std::max(worst, Seconds(now - last).count());
     last = now;
     ++frames;
