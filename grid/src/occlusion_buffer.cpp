@@ -32,6 +32,25 @@ float round_down(double d) {
   return f;
 }
 
+/// The vertices of the regular n-gon on the unit circle, angle 2 pi k / n:
+/// the inscribed polygons of render_disc, computed once.
+struct UnitCircle {
+  double cos[24], sin[24];
+};
+const UnitCircle& unit_circle(int n) {
+  static const auto make = [](int sides) {
+    UnitCircle c{};
+    for (int k = 0; k < sides; ++k) {
+      const double th = 2.0 * kPi * k / sides;
+      c.cos[k] = std::cos(th);
+      c.sin[k] = std::sin(th);
+    }
+    return c;
+  };
+  static const UnitCircle c8 = make(8), c12 = make(12), c16 = make(16), c24 = make(24);
+  return n == 8 ? c8 : n == 12 ? c12 : n == 16 ? c16 : c24;
+}
+
 /// The smallest float not below d (d >= 0).
 float round_up(double d) {
   if (!(d < static_cast<double>(std::numeric_limits<float>::max()))) return std::numeric_limits<float>::infinity();
@@ -151,30 +170,66 @@ bool OcclusionBuffer::fill(const ConvexOccluder& occ) {
   bool any = false;
   const int np = occ.planes;
   if (np == 0) return false;
-  double em[ConvexOccluder::kMaxEdges];
-  for (int k = 0; k < occ.edges; ++k) em[k] = margin(occ.edge[k], w_, h_);
-  // Half the slopes' magnitudes: from a pixel's centre to its worst corner.
+  // The edges by the side of the row they bound: gx > 0 from the left
+  // (pixels at or right of a column), gx < 0 from the right, the others
+  // (gx zero or NaN) the whole row or none. Per edge, the constant part of
+  // its value at a pixel's worst corner: half the slopes' magnitudes (from
+  // the pixel's centre) and the rounding margin.
   const double sgn = fault == BufferFault::OuterCoverage ? 1.0 : -1.0;
   const double dsgn = fault == BufferFault::NearDepth ? 1.0 : -1.0;
+  struct Side {
+    int n = 0;
+    double c[ConvexOccluder::kMaxEdges], gy[ConvexOccluder::kMaxEdges], gx[ConvexOccluder::kMaxEdges],
+        h[ConvexOccluder::kMaxEdges], em[ConvexOccluder::kMaxEdges];
+    void add(const PixelAffine& e, double half, double margin_k) {
+      c[n] = e.c, gy[n] = e.gy, gx[n] = e.gx, h[n] = half, em[n] = margin_k;
+      ++n;
+    }
+    /// The edge's value at the pixel's worst corner, on row centre Y.
+    double t(int k, double Y) const { return c[k] + gy[k] * Y + h[k] - em[k]; }
+  } left, right, flat;
+  for (int k = 0; k < occ.edges; ++k) {
+    const PixelAffine& e = occ.edge[k];
+    const double half = sgn * 0.5 * (std::fabs(e.gx) + std::fabs(e.gy));
+    const double m = margin(e, w_, h_);
+    if (e.gx > 0.0) {
+      left.add(e, half, m);
+    } else if (e.gx < 0.0) {
+      right.add(e, half, m);
+    } else {
+      flat.add(e, half, m);
+    }
+  }
   const float skip_at = round_down(occ.w_max * near_ * occ.slack);
   for (int j = occ.j0; j <= occ.j1; ++j) {
     const double Y = j + 0.5;
+    // Each edge's crossing x = -t / gx - 0.5 bounds the row's columns; the
+    // rounding allowance x +- 1e-9 (1 + |x|) and ceil / floor are monotone
+    // in x, so the bound of the farthest crossing is the farthest bound:
+    // one ceil and one floor a row, over loops without branches. A crossing
+    // that is not finite empties the row.
+    double xl = -kInf, xr = kInf;
+    bool finite = true;
+    for (int k = 0; k < left.n; ++k) {
+      const double x = -left.t(k, Y) / left.gx[k] - 0.5;
+      finite &= std::fabs(x) <= std::numeric_limits<double>::max();
+      xl = x > xl ? x : xl;
+    }
+    for (int k = 0; k < right.n; ++k) {
+      const double x = -right.t(k, Y) / right.gx[k] - 0.5;
+      finite &= std::fabs(x) <= std::numeric_limits<double>::max();
+      xr = x < xr ? x : xr;
+    }
+    for (int k = 0; k < flat.n; ++k) finite &= flat.t(k, Y) >= 0.0;
+    if (!finite) continue;
     double lo = occ.i0, hi = occ.i1;
-    for (int k = 0; k < occ.edges && lo <= hi; ++k) {
-      const PixelAffine& e = occ.edge[k];
-      const double t = e.c + e.gy * Y + sgn * 0.5 * (std::fabs(e.gx) + std::fabs(e.gy)) - em[k];
-      // A NaN bound empties the row (lo or hi NaN: `lo <= hi` fails).
-      if (e.gx > 0.0) {
-        const double x = -t / e.gx - 0.5;
-        const double c = std::ceil(x + 1e-9 * (1.0 + std::fabs(x)));
-        if (!(c <= lo)) lo = c;
-      } else if (e.gx < 0.0) {
-        const double x = -t / e.gx - 0.5;
-        const double c = std::floor(x - 1e-9 * (1.0 + std::fabs(x)));
-        if (!(c >= hi)) hi = c;
-      } else if (!(t >= 0.0)) {
-        hi = lo - 1.0;
-      }
+    if (left.n > 0) {
+      const double c = std::ceil(xl + 1e-9 * (1.0 + std::fabs(xl)));
+      lo = c > lo ? c : lo;
+    }
+    if (right.n > 0) {
+      const double c = std::floor(xr - 1e-9 * (1.0 + std::fabs(xr)));
+      hi = c < hi ? c : hi;
     }
     if (!(lo <= hi)) continue;
     const int i0 = static_cast<int>(lo), i1 = static_cast<int>(hi);
@@ -281,12 +336,12 @@ bool OcclusionBuffer::render_disc(const Vec3& centre, const Vec3& normal, double
   const Vec3 e2 = glm::cross(normal, e1);
   // Sides: more for a larger image, where a side's sagitta
   // rho (1 - cos(pi / n)) would otherwise cost pixels.
-  const int n = px_across < 6.0 ? 12 : px_across < 24.0 ? 16 : 24;
+  const int n = px_across < 3.0 ? 8 : px_across < 6.0 ? 12 : px_across < 24.0 ? 16 : 24;
+  const UnitCircle& circle = unit_circle(n);
   Vec3 v[24];
   double x0 = kInf, x1 = -kInf, y0 = kInf, y1 = -kInf;
   for (int k = 0; k < n; ++k) {
-    const double th = 2.0 * kPi * k / n;
-    v[k] = centre + rho * (std::cos(th) * e1 + std::sin(th) * e2);
+    v[k] = centre + rho * (circle.cos[k] * e1 + circle.sin[k] * e2);
     const double z = glm::dot(f_, v[k]);
     if (!(z > 0.0)) return false;
     const double x = glm::dot(r_, v[k]) / (z * tan_x_), y = glm::dot(u_, v[k]) / (z * tan_y_);
