@@ -172,62 +172,59 @@ bool OcclusionBuffer::fill(const ConvexOccluder& occ) {
   if (np == 0) return false;
   // The edges by the side of the row they bound: gx > 0 from the left
   // (pixels at or right of a column), gx < 0 from the right, the others
-  // (gx zero or NaN) the whole row or none. Per edge, the constant part of
-  // its value at a pixel's worst corner: half the slopes' magnitudes (from
-  // the pixel's centre) and the rounding margin.
+  // (gx zero or NaN) the whole row or none. An edge's value at a pixel's
+  // worst corner is g at the pixel's centre less half its two slopes'
+  // magnitudes, less the rounding margin; on the row of centre Y it is zero
+  // at column x = a + b Y, with a and b taken once per occluder. (The
+  // margin, 1e-12 of the edge's magnitudes, covers the few roundings of the
+  // division and of a + b Y many times over.)
   const double sgn = fault == BufferFault::OuterCoverage ? 1.0 : -1.0;
   const double dsgn = fault == BufferFault::NearDepth ? 1.0 : -1.0;
-  struct Side {
-    int n = 0;
-    double c[ConvexOccluder::kMaxEdges], gy[ConvexOccluder::kMaxEdges], gx[ConvexOccluder::kMaxEdges],
-        h[ConvexOccluder::kMaxEdges], em[ConvexOccluder::kMaxEdges];
-    void add(const PixelAffine& e, double half, double margin_k) {
-      c[n] = e.c, gy[n] = e.gy, gx[n] = e.gx, h[n] = half, em[n] = margin_k;
-      ++n;
-    }
-    /// The edge's value at the pixel's worst corner, on row centre Y.
-    double t(int k, double Y) const { return c[k] + gy[k] * Y + h[k] - em[k]; }
-  } left, right, flat;
+  constexpr int kE = ConvexOccluder::kMaxEdges;
+  double la[kE], lb[kE], ra[kE], rb[kE], fc[kE], fg[kE];
+  int nl = 0, nr = 0, nf = 0;
   for (int k = 0; k < occ.edges; ++k) {
     const PixelAffine& e = occ.edge[k];
-    const double half = sgn * 0.5 * (std::fabs(e.gx) + std::fabs(e.gy));
-    const double m = margin(e, w_, h_);
+    const double c = e.c + sgn * 0.5 * (std::fabs(e.gx) + std::fabs(e.gy)) - margin(e, w_, h_);
     if (e.gx > 0.0) {
-      left.add(e, half, m);
+      la[nl] = -c / e.gx - 0.5, lb[nl] = -e.gy / e.gx;
+      ++nl;
     } else if (e.gx < 0.0) {
-      right.add(e, half, m);
+      ra[nr] = -c / e.gx - 0.5, rb[nr] = -e.gy / e.gx;
+      ++nr;
     } else {
-      flat.add(e, half, m);
+      fc[nf] = c, fg[nf] = e.gy;
+      ++nf;
     }
   }
   const float skip_at = round_down(occ.w_max * near_ * occ.slack);
   for (int j = occ.j0; j <= occ.j1; ++j) {
     const double Y = j + 0.5;
-    // Each edge's crossing x = -t / gx - 0.5 bounds the row's columns; the
-    // rounding allowance x +- 1e-9 (1 + |x|) and ceil / floor are monotone
-    // in x, so the bound of the farthest crossing is the farthest bound:
-    // one ceil and one floor a row, over loops without branches. A crossing
-    // that is not finite empties the row.
+    // The row's columns lie between the farthest crossings of each side;
+    // the rounding allowance x +- 1e-9 (1 + |x|) and ceil / floor are
+    // monotone in x, so the bound of the farthest crossing is the farthest
+    // bound: one ceil and one floor a row, over loops without branches. A
+    // crossing that is not finite empties the row.
     double xl = -kInf, xr = kInf;
     bool finite = true;
-    for (int k = 0; k < left.n; ++k) {
-      const double x = -left.t(k, Y) / left.gx[k] - 0.5;
+    for (int k = 0; k < nl; ++k) {
+      const double x = la[k] + lb[k] * Y;
       finite &= std::fabs(x) <= std::numeric_limits<double>::max();
       xl = x > xl ? x : xl;
     }
-    for (int k = 0; k < right.n; ++k) {
-      const double x = -right.t(k, Y) / right.gx[k] - 0.5;
+    for (int k = 0; k < nr; ++k) {
+      const double x = ra[k] + rb[k] * Y;
       finite &= std::fabs(x) <= std::numeric_limits<double>::max();
       xr = x < xr ? x : xr;
     }
-    for (int k = 0; k < flat.n; ++k) finite &= flat.t(k, Y) >= 0.0;
+    for (int k = 0; k < nf; ++k) finite &= fc[k] + fg[k] * Y >= 0.0;
     if (!finite) continue;
     double lo = occ.i0, hi = occ.i1;
-    if (left.n > 0) {
+    if (nl > 0) {
       const double c = std::ceil(xl + 1e-9 * (1.0 + std::fabs(xl)));
       lo = c > lo ? c : lo;
     }
-    if (right.n > 0) {
+    if (nr > 0) {
       const double c = std::floor(xr - 1e-9 * (1.0 + std::fabs(xr)));
       hi = c < hi ? c : hi;
     }
@@ -258,14 +255,24 @@ bool OcclusionBuffer::fill(const ConvexOccluder& occ) {
     // compiler vectorizes: a NaN in the first operand of a min stays and
     // then raises no bound, in the second it is passed over as fmin would;
     // never a larger bound than fmin's.
-    for (int i = i0; i <= i1; ++i) {
-      const double x = static_cast<double>(i);
-      const double p0 = a[0] + g[0] * x, p1 = a[1] + g[1] * x, p2 = a[2] + g[2] * x;
-      const double w = std::min(std::min(p0, p1), std::min(p2, cap)) * s;
-      const float fw = static_cast<float>(std::max(w, 0.0));  // NaN stays NaN, and raises nothing.
-      const float old = row[i];
-      raised += fw > old ? 1 : 0;
-      row[i] = fw > old ? fw : old;
+    if (np == 1) {  // A disc: one plane (the general loop would take it thrice).
+      for (int i = i0; i <= i1; ++i) {
+        const double w = std::min(a[0] + g[0] * static_cast<double>(i), cap) * s;
+        const float fw = static_cast<float>(std::max(w, 0.0));
+        const float old = row[i];
+        raised += fw > old ? 1 : 0;
+        row[i] = fw > old ? fw : old;
+      }
+    } else {
+      for (int i = i0; i <= i1; ++i) {
+        const double x = static_cast<double>(i);
+        const double p0 = a[0] + g[0] * x, p1 = a[1] + g[1] * x, p2 = a[2] + g[2] * x;
+        const double w = std::min(std::min(p0, p1), std::min(p2, cap)) * s;
+        const float fw = static_cast<float>(std::max(w, 0.0));  // NaN stays NaN, and raises nothing.
+        const float old = row[i];
+        raised += fw > old ? 1 : 0;
+        row[i] = fw > old ? fw : old;
+      }
     }
     if (raised == 0) continue;
     any = true;
