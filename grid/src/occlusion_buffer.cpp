@@ -78,6 +78,8 @@ void OcclusionBuffer::begin(const WorldFrustum& wf, int width) {
   u_ = wf.u;
   tan_x_ = wf.tan_x;
   tan_y_ = wf.tan_y;
+  inv_tan_x_ = 1.0 / tan_x_;
+  inv_tan_y_ = 1.0 / tan_y_;
   near_ = wf.near;
   const int w = std::clamp(width, 1, kMaxSide);
   // Square pixels: W / aspect rows (the tangents' ratio, but computed from
@@ -351,7 +353,10 @@ bool OcclusionBuffer::render_disc(const Vec3& centre, const Vec3& normal, double
     v[k] = centre + rho * (circle.cos[k] * e1 + circle.sin[k] * e2);
     const double z = glm::dot(f_, v[k]);
     if (!(z > 0.0)) return false;
-    const double x = glm::dot(r_, v[k]) / (z * tan_x_), y = glm::dot(u_, v[k]) / (z * tan_y_);
+    // The range only limits the pixels visited (the edges decide): a
+    // reciprocal's rounding is harmless here.
+    const double iz = 1.0 / z;
+    const double x = glm::dot(r_, v[k]) * iz * inv_tan_x_, y = glm::dot(u_, v[k]) * iz * inv_tan_y_;
     x0 = std::fmin(x0, x), x1 = std::fmax(x1, x), y0 = std::fmin(y0, y), y1 = std::fmax(y1, y);
   }
   ConvexOccluder occ;
@@ -427,7 +432,8 @@ bool OcclusionBuffer::render_box(const Vec3& lo, const Vec3& hi) {
   double x0 = kInf, x1 = -kInf, y0 = kInf, y1 = -kInf;
   auto take = [&](const Vec3& p) {
     const double z = glm::dot(f_, p);
-    const double x = glm::dot(r_, p) / (z * tan_x_), y = glm::dot(u_, p) / (z * tan_y_);
+    const double iz = 1.0 / z;  // The range only limits the pixels visited.
+    const double x = glm::dot(r_, p) * iz * inv_tan_x_, y = glm::dot(u_, p) * iz * inv_tan_y_;
     x0 = std::fmin(x0, x), x1 = std::fmax(x1, x);
     y0 = std::fmin(y0, y), y1 = std::fmax(y1, y);
   };
@@ -547,9 +553,9 @@ bool OcclusionBuffer::hides(const Vec3& rel, const Vec3& size, double tol) const
     // Quick rejection: the pixel of the box's centre must hold a larger
     // bound (a necessary condition only, so any rounding is harmless).
     const Vec3 ch = 0.5 * size;
-    const double zc = Z0 + glm::dot(f_, ch);
-    const double xi = ((X0 + glm::dot(r_, ch)) / (zc * tan_x_) + 1.0) * 0.5 * w_;
-    const double yi = ((Y0 + glm::dot(u_, ch)) / (zc * tan_y_) + 1.0) * 0.5 * h_;
+    const double izc = 1.0 / (Z0 + glm::dot(f_, ch));
+    const double xi = ((X0 + glm::dot(r_, ch)) * izc * inv_tan_x_ + 1.0) * 0.5 * w_;
+    const double yi = ((Y0 + glm::dot(u_, ch)) * izc * inv_tan_y_ + 1.0) * 0.5 * h_;
     if (xi >= 0.0 && xi < w_ && yi >= 0.0 && yi < h_) {
       const int i = static_cast<int>(xi), j = static_cast<int>(yi);
       if (!(static_cast<double>(px_[static_cast<std::size_t>(j) * static_cast<std::size_t>(stride_) + static_cast<std::size_t>(i)]) > wmin))
@@ -572,11 +578,16 @@ bool OcclusionBuffer::hides(const Vec3& rel, const Vec3& size, double tol) const
   // A corner's position is good to tol (world units) in X, Y and Z: its
   // slope X/Z moves by at most tol (1 + |X/Z|) / Z. Plus a millionth of a
   // pixel, so that a point on a pixel boundary counts for both pixels.
-  const double ms = 2.0 * tol * (1.0 + std::max(std::fabs(x0), std::fabs(x1))) / zmin;
-  const double mt = 2.0 * tol * (1.0 + std::max(std::fabs(y0), std::fabs(y1))) / zmin;
-  const double mx = ms / tan_x_ + 2e-6 / w_, my = mt / tan_y_ + 2e-6 / h_;
+  // Multiplications by reciprocals below: each adds a rounding or two to a
+  // slope, a billionth of the millionth of a pixel allowed for where the
+  // slope lies in the image (and nothing that matters beyond it).
+  const double izmin = 1.0 / zmin;
+  const double ms = 2.0 * tol * (1.0 + std::max(std::fabs(x0), std::fabs(x1))) * izmin;
+  const double mt = 2.0 * tol * (1.0 + std::max(std::fabs(y0), std::fabs(y1))) * izmin;
+  const double mx = ms * inv_tan_x_ + 2e-6 / w_, my = mt * inv_tan_y_ + 2e-6 / h_;
   int i0, i1, j0, j1;
-  if (!rect(x0 / tan_x_ - mx, x1 / tan_x_ + mx, y0 / tan_y_ - my, y1 / tan_y_ + my, &i0, &i1, &j0, &j1))
+  if (!rect(x0 * inv_tan_x_ - mx, x1 * inv_tan_x_ + mx, y0 * inv_tan_y_ - my, y1 * inv_tan_y_ + my, &i0, &i1, &j0,
+            &j1))
     return false;
   return rect_hidden(i0, i1, j0, j1, wmin);
 }

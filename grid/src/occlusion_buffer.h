@@ -154,6 +154,7 @@ class OcclusionBuffer {
   Vec3 eye_{0.0}, f_{0.0}, r_{0.0}, u_{0.0};
   Vec3 d0_{0.0}, dx_{0.0}, dy_{0.0};  ///< d(X, Y) = d0 + X dx + Y dy.
   double tan_x_ = 1.0, tan_y_ = 1.0, near_ = 0.0;
+  double inv_tan_x_ = 1.0, inv_tan_y_ = 1.0;
   int w_ = 0, h_ = 0, stride_ = 0, tw_ = 0, th_ = 0;
   std::uint64_t written_ = 0;  ///< Pixel bounds raised this frame.
   std::vector<float> px_;      ///< Row-major, stride_ floats a row: reciprocal depth bounds.
