@@ -50,9 +50,10 @@ class CellTraversal {
   /// along a starts at voxel `first`, children `size` voxels wide.
   void order(int a, int first, int size, int out[4]) const;
   /// Records the voxels of a brick in view as seen, a layer at a time
-  /// across the axis nearest the view direction: a layer the buffer hides
-  /// (behind a wall the brick holds) is left out, so that TBVs of objects
-  /// behind the wall may grow up to it without being revealed.
+  /// across the axis nearest the view direction: the layers the buffer hides
+  /// at the brick's far side (behind a wall the brick holds) are left out,
+  /// so that TBVs of objects behind the wall may grow up to it without being
+  /// revealed.
   void see_layers(const glm::ivec3& c, std::size_t bi);
   /// Whether every pixel holds a bound and `zmin` lies beyond all of them.
   bool beyond_buffer(double zmin);
@@ -179,13 +180,23 @@ void CellTraversal::see_layers(const glm::ivec3& c, std::size_t bi) {
   const GridSpec& g = s_.spec;
   const glm::ivec3 o = c << kCellShift;
   const glm::ivec3 end = glm::min(o + (1 << kCellShift), s_.res);
+  // From the farthest layer towards the eye: once one is not hidden, the
+  // nearer ones are taken as seen untested (a layer recorded as seen only
+  // keeps TBVs out of it: conservative), so a brick without a wall costs one
+  // test, not one a layer.
+  const int layers = std::min(1 << kCellShift, end[a] - o[a]);
+  const bool ascending = wf_.f[a] < 0.0;  // Then the first layer is the farthest.
   std::uint64_t mask = 0;
-  for (int k = 0; k < (1 << kCellShift) && o[a] + k < end[a]; ++k) {
-    glm::ivec3 lo = o, hi = end;
-    lo[a] = o[a] + k;
-    hi[a] = o[a] + k + 1;
-    if (!w_.ob.hides_world(g.bounds_min + Vec3(lo) * g.voxel_size, g.bounds_min + Vec3(hi) * g.voxel_size))
-      mask |= kLayer0[a] << (k << (2 * a));
+  bool seen = false;
+  for (int step = 0; step < layers; ++step) {
+    const int k = ascending ? step : layers - 1 - step;
+    if (!seen) {
+      glm::ivec3 lo = o, hi = end;
+      lo[a] = o[a] + k;
+      hi[a] = o[a] + k + 1;
+      seen = !w_.ob.hides_world(g.bounds_min + Vec3(lo) * g.voxel_size, g.bounds_min + Vec3(hi) * g.voxel_size);
+    }
+    if (seen) mask |= kLayer0[a] << (k << (2 * a));
   }
   col_.see_brick(bi, mask);
 }
