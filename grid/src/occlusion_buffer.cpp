@@ -15,6 +15,7 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kEps = std::numeric_limits<double>::epsilon();
+constexpr double kMaxDouble = std::numeric_limits<double>::max();
 constexpr double kPi = 3.14159265358979323846;
 /// Relative allowance taken off every written bound: far above the rounding
 /// of the plane depths, far below any distance that matters.
@@ -199,6 +200,8 @@ bool OcclusionBuffer::fill(const ConvexOccluder& occ) {
       ++nf;
     }
   }
+  if (nl % 2) la[nl] = la[0], lb[nl] = lb[0];
+  if (nr % 2) ra[nr] = ra[0], rb[nr] = rb[0];
   const float skip_at = round_down(occ.w_max * near_ * occ.slack);
   for (int j = occ.j0; j <= occ.j1; ++j) {
     const double Y = j + 0.5;
@@ -207,20 +210,26 @@ bool OcclusionBuffer::fill(const ConvexOccluder& occ) {
     // monotone in x, so the bound of the farthest crossing is the farthest
     // bound: one ceil and one floor a row, over loops without branches. A
     // crossing that is not finite empties the row.
-    double xl = -kInf, xr = kInf;
+    // Two edges at a time into two accumulators (the lists are padded to
+    // even lengths with a copy of their first edge), so that no chain of
+    // dependent maxima serializes the loop.
+    double xl0 = -kInf, xl1 = -kInf, xr0 = kInf, xr1 = kInf;
     bool finite = true;
-    for (int k = 0; k < nl; ++k) {
-      const double x = la[k] + lb[k] * Y;
-      finite &= std::fabs(x) <= std::numeric_limits<double>::max();
-      xl = x > xl ? x : xl;
+    for (int k = 0; k < nl; k += 2) {
+      const double x0 = la[k] + lb[k] * Y, x1 = la[k + 1] + lb[k + 1] * Y;
+      finite &= std::fabs(x0) <= kMaxDouble && std::fabs(x1) <= kMaxDouble;
+      xl0 = x0 > xl0 ? x0 : xl0;
+      xl1 = x1 > xl1 ? x1 : xl1;
     }
-    for (int k = 0; k < nr; ++k) {
-      const double x = ra[k] + rb[k] * Y;
-      finite &= std::fabs(x) <= std::numeric_limits<double>::max();
-      xr = x < xr ? x : xr;
+    for (int k = 0; k < nr; k += 2) {
+      const double x0 = ra[k] + rb[k] * Y, x1 = ra[k + 1] + rb[k + 1] * Y;
+      finite &= std::fabs(x0) <= kMaxDouble && std::fabs(x1) <= kMaxDouble;
+      xr0 = x0 < xr0 ? x0 : xr0;
+      xr1 = x1 < xr1 ? x1 : xr1;
     }
     for (int k = 0; k < nf; ++k) finite &= fc[k] + fg[k] * Y >= 0.0;
     if (!finite) continue;
+    const double xl = xl0 > xl1 ? xl0 : xl1, xr = xr0 < xr1 ? xr0 : xr1;
     double lo = occ.i0, hi = occ.i1;
     if (nl > 0) {
       const double c = std::ceil(xl + 1e-9 * (1.0 + std::fabs(xl)));
