@@ -259,13 +259,20 @@ TEST(ServerRobustness, SlowReaderCostsBoundedMemory) {
 
 // ---------------------------------------------------------------------------
 
+/// Scene "s": 200 small spheres on a lattice, grid 32^3.
+::testing::AssertionResult create_lattice(const Api& api) {
+  v1::SceneDescription d;
+  to_proto(lattice_scene(200, 32, 3), &d);
+  const grpc::Status st = api.create_scene("s", d);
+  if (st.ok()) return ::testing::AssertionSuccess();
+  return ::testing::AssertionFailure() << "CreateScene: " << show(st);
+}
+
 TEST(ServerRobustness, FiveHundredConcurrentViewers) {
   ServerProcess server;
   ASSERT_TRUE(server.start());
   const Api api = server.api();
-  v1::SceneDescription d;
-  to_proto(lattice_scene(200, 32, 3), &d);
-  ASSERT_TRUE(api.create_scene("s", d).ok());
+  ASSERT_TRUE(create_lattice(api));
 
   // Sync streams driven lock-step from this thread: each has at most one
   // request in flight, so one thread can keep all of them going. Five
@@ -317,14 +324,13 @@ TEST(ServerRobustness, FiveHundredConcurrentViewers) {
 // (the load generator): the viewer keeps its answers and every new stream
 // gets its first one. New streams' frames wait behind the connections
 // already taking turns on the workers (pool.h), never ahead of them. A
-// liveness bound, not a timing target: docs/performance.md has the figures.
+// liveness bound, not a timing target: docs/server.md ("Fairness") has the
+// figures.
 TEST(ServerRobustness, AThousandNewStreamsDoNotStarveAViewerAlreadyServed) {
   ServerProcess server;
   ASSERT_TRUE(server.start());
   const Api api = server.api();
-  v1::SceneDescription d;
-  to_proto(lattice_scene(200, 32, 3), &d);
-  ASSERT_TRUE(api.create_scene("s", d).ok());
+  ASSERT_TRUE(create_lattice(api));
   std::atomic<bool> burst_over{false};
   std::vector<double> gaps;
   bool answered = true;
