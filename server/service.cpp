@@ -20,6 +20,12 @@ std::string mib(std::uint64_t bytes) {
   return std::to_string((bytes + (1u << 20) - 1) >> 20) + " MiB";
 }
 
+/// An environment variable's value; empty when unset.
+std::string env_text(const char* name) {
+  const char* v = std::getenv(name);
+  return v ? v : "";
+}
+
 /// Frames of one scene finish in any order: the statistic keeps the latest.
 void store_max(std::atomic<double>& a, double v) {
   double cur = a.load(std::memory_order_relaxed);
@@ -122,10 +128,8 @@ Service::Service(ServiceConfig config, WorkerPool& pool, WorkerPool& builds, Sce
       tokens_(tokens),
       metrics_(metrics),
       log_(std::move(log)),
-      fail_scene_([] {
-        const char* v = std::getenv("VOXVIS_TEST_FAIL_SCENE");
-        return std::string(v ? v : "");
-      }()) {}
+      fail_scene_(env_text("VOXVIS_TEST_FAIL_SCENE")),
+      fail_build_(env_text("VOXVIS_TEST_FAIL_BUILD")) {}
 
 Service::~Service() = default;
 
@@ -283,25 +287,24 @@ grpc::Status Service::build_scene(const std::string& id, SceneDesc desc, const s
     reserved_[id] = bytes;
     bytes_in_use_ += bytes;
   }
-  auto unreserve = [&](bool keep_bytes) {
+
+  // From here on every way out but the registration below, a throw
+  // included, gives the id and the bytes back.
+  struct Reservation {
+    std::function<void()> release;
+    ~Reservation() {
+      if (release) release();
+    }
+  } reservation{[&] {
     std::lock_guard<std::mutex> lock(scenes_mu_);
     reserved_.erase(id);
-    if (!keep_bytes) bytes_in_use_ -= bytes;
-  };
-
+    bytes_in_use_ -= bytes;
+  }};
   auto entry = std::make_shared<SceneEntry>();
   ctl.max_bytes = cost.bytes;
   Status s = Scene::create(desc, opt, &entry->scene, &ctl);
-  if (!s) {
-    unreserve(false);
-    return engine_status(s, budget_text);
-  }
-  if (persist) {
-    if (Status w = store_.save_scene(id, json); !w) {
-      unreserve(false);
-      return grpc::Status(grpc::StatusCode::INTERNAL, "cannot store the scene: " + w.str());
-    }
-  }
+  if (!s) return engine_status(s, budget_text);
+  if (!fail_build_.empty() && id == fail_build_) throw std::runtime_error("fault injected (VOXVIS_TEST_FAIL_BUILD)");
   entry->id = id;
   entry->strand = std::make_shared<Strand>(pool_, "scene:" + id);
   entry->memory_bytes = bytes;
@@ -317,9 +320,18 @@ grpc::Status Service::build_scene(const std::string& id, SceneDesc desc, const s
   }
   entry->refresh_wake();
   entry->tbvs_active.store(0);
+  // On disk last, so that nothing that can fail comes between the file and
+  // the registration.
+  if (persist) {
+    if (Status w = store_.save_scene(id, json); !w) {
+      metrics_.remove_scene(id);
+      return grpc::Status(grpc::StatusCode::INTERNAL, "cannot store the scene: " + w.str());
+    }
+  }
   std::size_t count;
   {
     std::lock_guard<std::mutex> lock(scenes_mu_);
+    reservation.release = nullptr;  // The bytes stay, now the scene's.
     reserved_.erase(id);
     scenes_[id] = entry;
     count = scenes_.size();
@@ -420,33 +432,37 @@ grpc::ServerUnaryReactor* Service::CreateScene(grpc::CallbackServerContext* ctx,
     control.cancelled = [this, ctx, deadline] {
       return shutting_down() || ctx->IsCancelled() || std::chrono::system_clock::now() > deadline;
     };
-    SceneDesc desc;
-    std::string json;
-    bool from_json = false;
-    Status s;
-    switch (req->content_case()) {
-      case v1::CreateSceneRequest::kDescription:
-        s = desc_from_proto(req->description(), &desc);
-        if (s) json = scene_to_json(desc);
-        break;
-      case v1::CreateSceneRequest::kSceneJson:
-        from_json = true;
-        json = req->scene_json();
-        s = desc_from_json(json, &desc);
-        break;
-      default:
-        s = Status::Error("content", "missing: set description or scene_json");
-    }
-    if (!s) {
-      finish_unary(r, "CreateScene", invalid(s));
-      return;
-    }
-    grpc::Status g = build_scene(req->scene_id(), std::move(desc), json, from_json, true, &control);
-    if (g.ok()) {
-      fill_info(*find(req->scene_id()), resp);
-      log_("created scene '" + req->scene_id() + "'");
-    } else if (g.error_code() == grpc::StatusCode::CANCELLED) {
-      log_("build of scene '" + req->scene_id() + "' stopped: its client went away or its deadline passed");
+    // Everything below may throw (memory exhausted by a huge document, say):
+    // then the call ends INTERNAL and the server goes on.
+    grpc::Status g;
+    try {
+      SceneDesc desc;
+      std::string json;
+      bool from_json = false;
+      Status s;
+      switch (req->content_case()) {
+        case v1::CreateSceneRequest::kDescription:
+          s = desc_from_proto(req->description(), &desc);
+          if (s) json = scene_to_json(desc);
+          break;
+        case v1::CreateSceneRequest::kSceneJson:
+          from_json = true;
+          json = req->scene_json();
+          s = desc_from_json(json, &desc);
+          break;
+        default:
+          s = Status::Error("content", "missing: set description or scene_json");
+      }
+      g = s ? build_scene(req->scene_id(), std::move(desc), json, from_json, true, &control) : invalid(s);
+      if (g.ok()) {
+        fill_info(*find(req->scene_id()), resp);
+        log_("created scene '" + req->scene_id() + "'");
+      } else if (g.error_code() == grpc::StatusCode::CANCELLED) {
+        log_("build of scene '" + req->scene_id() + "' stopped: its client went away or its deadline passed");
+      }
+    } catch (const std::exception& e) {
+      log_("internal error creating scene '" + req->scene_id() + "': " + e.what());
+      g = grpc::Status(grpc::StatusCode::INTERNAL, std::string("internal error creating the scene: ") + e.what());
     }
     finish_unary(r, "CreateScene", g);
   });

@@ -216,7 +216,8 @@ class Service final : public RawVisibilityService {
   /// becomes INTERNAL for this one call, logged with `what`; the process and
   /// every other call go on. With VOXVIS_TEST_FAIL_SCENE=<id> in the
   /// environment, every such call of scene <id> throws: the fault the
-  /// tests inject to check this path.
+  /// tests inject to check this path (VOXVIS_TEST_FAIL_BUILD=<id> does the
+  /// same to a build of scene <id>, after its grid is built).
   template <class F>
   grpc::Status guarded(const SceneEntry& e, const char* what, F&& f) {
     std::string text;
@@ -259,6 +260,7 @@ class Service final : public RawVisibilityService {
   Log log_;
   Verifier* verifier_ = nullptr;
   const std::string fail_scene_;  // VOXVIS_TEST_FAIL_SCENE; empty: none.
+  const std::string fail_build_;  // VOXVIS_TEST_FAIL_BUILD: builds of that id throw once built.
 
   mutable std::mutex scenes_mu_;
   std::map<std::string, std::shared_ptr<SceneEntry>> scenes_;  // Guarded by scenes_mu_.

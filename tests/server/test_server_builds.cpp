@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <filesystem>
 #include <string>
 #include <thread>
 #include <vector>
@@ -177,6 +178,34 @@ TEST(Faults, AFrameThatThrowsIsAnsweredInternalAndTheServerGoesOn) {
   EXPECT_THAT(text, HasSubstr("voxvis_errors_total{code=\"INTERNAL\",method=\"View\"} 1"));
   EXPECT_THAT(text, HasSubstr("voxvis_errors_total{code=\"INTERNAL\",method=\"Simulate\"} 1"));
   EXPECT_THAT(server.log(), HasSubstr("internal error in a frame of scene 'boom'"));
+  EXPECT_EQ(server.terminate(), 0);
+}
+
+// A build that throws after its grid is built: the call ends INTERNAL, and
+// the id, the budget and the data directory are as if it never ran.
+TEST(Faults, ABuildThatThrowsGivesItsIdAndBudgetBack) {
+  ServerProcess server({"--memory-budget-mib", "64"});
+  server.extra_env() = {"VOXVIS_TEST_FAIL_BUILD=boom"};
+  ASSERT_TRUE(server.start());
+  const Api api = server.api();
+  // Each build reserves most of the budget: one leaked reservation would
+  // refuse the next.
+  v1::SceneDescription d;
+  to_proto(lattice_scene(200, 160, 3), &d);
+  for (int i = 0; i < 3; ++i) {
+    const grpc::Status s = api.create_scene("boom", d);
+    EXPECT_EQ(s.error_code(), grpc::StatusCode::INTERNAL) << show(s);
+    EXPECT_THAT(s.error_message(), HasSubstr("internal error creating the scene"));
+  }
+  std::vector<std::string> ids;
+  ASSERT_TRUE(api.list_scenes(&ids).ok());
+  EXPECT_TRUE(ids.empty());
+  EXPECT_FALSE(std::filesystem::exists(server.data_dir() + "/scenes/boom.json"));
+  v1::SceneInfo info;
+  const grpc::Status ok = api.create_scene("fine", d, &info);
+  EXPECT_TRUE(ok.ok()) << show(ok);
+  EXPECT_GT(info.memory_bytes(), 32u << 20) << "the scene must need more than half the budget";
+  EXPECT_TRUE(server.running());
   EXPECT_EQ(server.terminate(), 0);
 }
 
