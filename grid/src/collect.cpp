@@ -13,7 +13,6 @@
 namespace voxvis::detail {
 
 namespace {
-constexpr double kUlp = std::numeric_limits<double>::epsilon();
 
 /// Adds the ticks of its scope to a counter (Scratch::Impl::render_ticks).
 /// No clock read per occluder: a clock can be a system call (a CPU-time

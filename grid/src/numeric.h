@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <string>
 #if defined(__x86_64__) || defined(__i386__)
 #include <x86intrin.h>
@@ -25,6 +26,17 @@ inline std::uint64_t ticks() {
 #else
   return static_cast<std::uint64_t>(std::chrono::steady_clock::now().time_since_epoch().count());
 #endif
+}
+
+/// One unit in the last place of 1.0.
+inline constexpr double kUlp = std::numeric_limits<double>::epsilon();
+
+/// Clamps a grid coordinate to [lo, hi] before converting it, so huge or
+/// far-away values never overflow the integer.
+inline int clamp_floor(double g, int lo, int hi) {
+  if (!(g >= lo)) return lo;
+  if (g >= hi) return hi;
+  return static_cast<int>(std::floor(g));
 }
 
 inline bool finite3(const Vec3& v) {

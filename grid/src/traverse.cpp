@@ -45,7 +45,6 @@ constexpr std::uint32_t kBlocked = 2;
 /// While frames of other viewers run, Scene::frame renews TBVs expiring
 /// within this many seconds of the frame along with the expired ones.
 constexpr double kRenewAhead = 0.1;
-constexpr double kUlp = std::numeric_limits<double>::epsilon();
 
 /// Inclusive box of local voxel coordinates.
 struct IBox {
