@@ -586,6 +586,10 @@ int ServerProcess::metrics_port() const {
   return end == std::string::npos ? 0 : static_cast<int>(number_before(text.substr(at), marker));
 }
 
+std::string show(const grpc::Status& s) {
+  return std::to_string(static_cast<int>(s.error_code())) + " " + s.error_message();
+}
+
 long number_before(const std::string& text, const std::string& marker) {
   const std::size_t end = text.find(marker);
   if (end == std::string::npos) return -1;

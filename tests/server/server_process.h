@@ -261,6 +261,9 @@ class PvsFlood {
   std::map<grpc::StatusCode, int> codes_;  // Guarded by mu_.
 };
 
+/// A status for a failure message: its code as a number, then its message.
+std::string show(const grpc::Status& s);
+
 /// GET http://127.0.0.1:port/path over HTTP/1.0: the whole answer, headers
 /// included, or a line saying what failed.
 std::string http_get(int port, const std::string& path);

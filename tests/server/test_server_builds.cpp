@@ -28,10 +28,6 @@ using ::testing::HasSubstr;
 using ::testing::Not;
 using Clock = std::chrono::steady_clock;
 
-std::string show(const grpc::Status& s) {
-  return std::to_string(static_cast<int>(s.error_code())) + " " + s.error_message();
-}
-
 v1::SceneDescription huge_spheres(int count) {
   v1::SceneDescription out;
   to_proto(huge_footprint_scene(count), &out);
@@ -133,8 +129,9 @@ TEST(Builds, LongBuildsDoNotDelayViewersOfOtherScenes) {
   for (auto& t : builders) t.join();
   EXPECT_EQ(builds_done.load(), 2);
   std::printf("viewer beside two 100,000-sphere builds: %d frames in 4 s, worst gap %.3f s\n", frames, worst);
-  // A liveness bound, not a timing target: before, the gap was 39 s.
-  EXPECT_LT(worst, 1.0);
+  // A liveness bound, not a timing target (the figure is printed above and
+  // in docs/server.md): before, the viewer got no answer within 30 s.
+  EXPECT_LT(worst, 5.0);
 }
 
 // An exception in a frame or a move batch (here injected) is answered

@@ -15,16 +15,13 @@
 #include "extreme_cameras.h"
 #include "scenes.h"
 #include "server_process.h"
+#include "voxvis/format.h"
 
 namespace voxvis::servertest {
 namespace {
 
 using ::testing::HasSubstr;
 using test::kDenormal;
-
-std::string show(const grpc::Status& s) {
-  return std::to_string(static_cast<int>(s.error_code())) + " " + s.error_message();
-}
 
 /// Static (so that answers do not depend on the order of frames), with
 /// occluders, walls thinner than a voxel and objects outside the bounds.
@@ -41,12 +38,11 @@ SceneDesc camera_scene() {
   return d;
 }
 
+/// The camera as a frames-file line, to replay a failure with `voxvis replay`.
 std::string text(const Camera& c) {
-  char buf[512];
-  std::snprintf(buf, sizeof buf, "eye (%.17g %.17g %.17g) dir (%.17g %.17g %.17g) up (%.17g %.17g %.17g) fov %.17g aspect %.17g near %.17g far %.17g",
-                c.eye.x, c.eye.y, c.eye.z, c.dir.x, c.dir.y, c.dir.z, c.up.x, c.up.y, c.up.z, c.fov_y_deg,
-                c.aspect, c.near, c.far);
-  return buf;
+  FrameInput f;
+  f.camera = c;
+  return frame_to_json(f);
 }
 
 TEST(Cameras, ExtremeCamerasAreAnsweredOverTheWireAsTheEngineAnswersThem) {

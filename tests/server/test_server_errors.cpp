@@ -17,10 +17,6 @@ namespace {
 
 using ::testing::HasSubstr;
 
-std::string show(const grpc::Status& s) {
-  return std::to_string(static_cast<int>(s.error_code())) + " " + s.error_message();
-}
-
 /// A viewer that must keep being answered.
 class Watcher {
  public:

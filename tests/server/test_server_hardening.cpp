@@ -22,10 +22,6 @@ namespace {
 using ::testing::HasSubstr;
 using ::testing::Not;
 
-std::string show(const grpc::Status& s) {
-  return std::to_string(static_cast<int>(s.error_code())) + " " + s.error_message();
-}
-
 /// GetPvs with its own deadline (the harness's default is 30 s).
 grpc::Status get_pvs(const Api& api, const std::string& id, double t, const Camera& cam,
                      v1::GetPvsResponse* out, Seconds timeout = Seconds(10)) {

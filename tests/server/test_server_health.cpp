@@ -28,10 +28,6 @@ const std::string kServiceUnknown("\x08\x03", 2);
 // ServerReflectionRequest{list_services: "*"}: field 7, length-delimited.
 const std::string kListServices("\x3a\x01*", 3);
 
-std::string show(const grpc::Status& s) {
-  return std::to_string(static_cast<int>(s.error_code())) + " " + s.error_message();
-}
-
 /// HealthCheckRequest{service: name}: field 1, length-delimited (names
 /// shorter than 128 bytes, so the length is one byte).
 std::string health_request(const std::string& name) {

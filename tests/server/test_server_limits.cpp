@@ -17,10 +17,6 @@ namespace {
 
 using ::testing::HasSubstr;
 
-std::string show(const grpc::Status& s) {
-  return std::to_string(static_cast<int>(s.error_code())) + " " + s.error_message();
-}
-
 /// A CreateScene request of about `bytes` bytes (a scene_json that does not
 /// parse; it never gets that far).
 std::string big_create_request(std::size_t bytes) {

@@ -16,10 +16,6 @@ const std::string kViewer = "viewer-token-0123456789abcdef";
 const std::string kSimulation = "simulation-token-0123456789abcdef";
 const std::string kAdmin = "admin-token-0123456789abcdef";
 
-std::string show(const grpc::Status& s) {
-  return std::to_string(static_cast<int>(s.error_code())) + " " + s.error_message();
-}
-
 /// The status of a View stream that sends one frame.
 grpc::Status view_status(const Api& api, const std::string& id) {
   ViewStream v(api, id);
