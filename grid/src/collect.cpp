@@ -32,9 +32,12 @@ class ScopedTicks {
 
 bool eye_too_far(const Vec3& eye_grid) { return max_abs(eye_grid) > 0x1p40; }
 
-bool ob_hides_object(const OcclusionBuffer& ob, const Obj& o) {
-  return o.shape == Shape::Sphere ? ob.hides_sphere(o.center, o.radius) : ob.hides_world(o.box_lo(), o.box_hi());
+bool ob_hides_object(const OcclusionBuffer& ob, const Obj& o, bool fine) {
+  return o.shape == Shape::Sphere ? ob.hides_sphere(o.center, o.radius, fine)
+                                  : ob.hides_world(o.box_lo(), o.box_hi(), fine);
 }
+
+bool ob_hides_tbv(const OcclusionBuffer& ob, const Obj& o) { return ob.hides_world_split(o.tbv_lo, o.tbv_hi, 3); }
 
 bool make_frame_geometry(const Scene::Impl& s, const WorldFrustum& wf, FrameGeometry* out) {
   FrameGeometry& g = *out;
@@ -106,7 +109,7 @@ void Collector::reveal(std::uint32_t slot) {
   // conservative while the traversal stays read-only.
   if (w_.obj_seen[slot] == w_.frame) return;  // Already handled this frame.
   const Obj& o = s_.objs[slot];
-  if (w_.ob.on() && w_.ob.hides_world(o.tbv_lo, o.tbv_hi)) {
+  if (w_.ob.on() && ob_hides_tbv(w_.ob, o)) {
     // Every position the object can reach before the TBV expires is hidden
     // now: nothing to reveal, and the object (inside the TBV) is hidden too.
     w_.obj_seen[slot] = w_.frame;

@@ -44,8 +44,13 @@ bool eye_too_far(const Vec3& eye_grid);
 bool make_frame_geometry(const Scene::Impl& s, const WorldFrustum& wf, FrameGeometry* g);
 
 /// Whether the buffer proves an object (at the position the scene holds)
-/// hidden: a ball by its own outline, a box by itself.
-bool ob_hides_object(const OcclusionBuffer& ob, const Obj& o);
+/// hidden: a ball by its own outline, a box by itself (`fine`: see
+/// OcclusionBuffer::hides).
+bool ob_hides_object(const OcclusionBuffer& ob, const Obj& o, bool fine = false);
+/// Whether the buffer proves object o's TBV hidden: tested fine, then in
+/// pieces (OcclusionBuffer::hides_world_split, three levels: a TBV is
+/// large, and a reveal wakes its object).
+bool ob_hides_tbv(const OcclusionBuffer& ob, const Obj& o);
 
 class Collector {
  public:

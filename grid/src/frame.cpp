@@ -157,7 +157,7 @@ void beyond_grid(FrameRun& f) {
     ++f.st.outside_tested;
     const Obj& o = s.objs[slot];
     if (!o.under_tbv || !outside_part_visible(f.wf, s.spec, o.tbv_lo, o.tbv_hi)) continue;
-    if (f.w.ob.hides_world(o.tbv_lo, o.tbv_hi)) {
+    if (detail::ob_hides_tbv(f.w.ob, o)) {
       ++f.st.ob_objects_culled;
       continue;
     }
@@ -179,16 +179,17 @@ void beyond_grid(FrameRun& f) {
 
 /// Phase 2: objects found early were tested against a buffer that did not
 /// yet hold the occluders found after them; the PVS and the reveals are
-/// tested once more against the whole buffer. Sound in any order: a bound
+/// tested once more against the whole buffer, fine (over each pixel at the
+/// object's own depth there) since this is the last word on them. Sound in any order: a bound
 /// says only that some object (in the PVS or not) hides what lies behind it.
 void retest(FrameRun& f) {
   detail::OcclusionBuffer& ob = f.w.ob;
   if (ob.on()) {
     const Scene::Impl& s = f.s;
-    auto hidden = [&](std::uint32_t slot) { return detail::ob_hides_object(ob, s.objs[slot]); };
+    auto hidden = [&](std::uint32_t slot) { return detail::ob_hides_object(ob, s.objs[slot], true); };
     const std::size_t before = f.w.pvs.size();
     f.w.pvs.erase(std::remove_if(f.w.pvs.begin(), f.w.pvs.end(), hidden), f.w.pvs.end());
-    auto tbv_hidden = [&](std::uint32_t slot) { return ob.hides_world(s.objs[slot].tbv_lo, s.objs[slot].tbv_hi); };
+    auto tbv_hidden = [&](std::uint32_t slot) { return detail::ob_hides_tbv(ob, s.objs[slot]); };
     f.w.deferred.erase(std::remove_if(f.w.deferred.begin(), f.w.deferred.end(), tbv_hidden), f.w.deferred.end());
     f.st.ob_objects_culled += static_cast<std::uint32_t>(before - f.w.pvs.size());
     f.st.ob_pixels_written = ob.writes();

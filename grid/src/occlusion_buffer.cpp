@@ -73,6 +73,7 @@ void OcclusionBuffer::begin(const WorldFrustum& wf, int width) {
     w_ = 0;
     return;
   }
+  view_ = wf;
   eye_ = wf.eye;
   f_ = wf.f;
   r_ = wf.r;
@@ -532,24 +533,66 @@ bool OcclusionBuffer::render_box(const Vec3& lo, const Vec3& hi) {
   return fill(occ);
 }
 
-bool OcclusionBuffer::rect_hidden(int i0, int i1, int j0, int j1, double w) const {
+bool OcclusionBuffer::rect_hidden(int i0, int i1, int j0, int j1, double w, OccludeeDepth* depth) const {
   for (int tj = j0 / kTile; tj <= j1 / kTile; ++tj) {
     for (int ti = i0 / kTile; ti <= i1 / kTile; ++ti) {
       const auto t = static_cast<std::size_t>(tj * tw_ + ti);
-      if (static_cast<double>(tile_min(t)) > w) continue;
+      const double tmin = static_cast<double>(tile_min(t));
+      if (tmin > w) continue;
       const int pi0 = std::max(i0, ti * kTile), pi1 = std::min(i1, ti * kTile + kTile - 1);
       const int pj0 = std::max(j0, tj * kTile), pj1 = std::min(j1, tj * kTile + kTile - 1);
+      if (!depth) {
+        for (int j = pj0; j <= pj1; ++j) {
+          const float* row = px_.data() + static_cast<std::size_t>(j) * static_cast<std::size_t>(stride_);
+          for (int i = pi0; i <= pi1; ++i)
+            if (!(static_cast<double>(row[i]) > w)) return false;
+        }
+        continue;
+      }
+      // With the occludee's planes: its largest reciprocal depth over the
+      // tile's part of the rectangle, then over each pixel that cannot
+      // decide.
+      entry_planes(depth);
+      const double wt = depth->bound(w, pi0, pi1, pj0, pj1);
+      if (tmin > wt) continue;
       for (int j = pj0; j <= pj1; ++j) {
         const float* row = px_.data() + static_cast<std::size_t>(j) * static_cast<std::size_t>(stride_);
-        for (int i = pi0; i <= pi1; ++i)
-          if (!(static_cast<double>(row[i]) > w)) return false;
+        for (int i = pi0; i <= pi1; ++i) {
+          const double v = static_cast<double>(row[i]);
+          if (!(v > wt) && !(v > depth->bound(wt, i, i, j, j))) return false;
+        }
       }
     }
   }
   return true;
 }
 
-bool OcclusionBuffer::hides(const Vec3& rel, const Vec3& size, double tol) const {
+void OcclusionBuffer::entry_planes(OccludeeDepth* depth) const {
+  if (depth->planes >= 0) return;
+  depth->planes = 0;
+  // Along an axis where the eye lies outside the box's slab, a ray meeting
+  // the box does so at or beyond the slab's near plane {p_a = P}: at depth
+  // >= P / d_a, so at reciprocal depth <= near d_a / P, an affine function
+  // of the pixel coordinates. Each plane is moved towards the eye by twice
+  // the positions' allowance; a plane that would reach the eye is left out.
+  const Vec3& rel = depth->rel;
+  const Vec3& size = depth->size;
+  const double tol = depth->tol;
+  for (int a = 0; a < 3; ++a) {
+    double P;
+    if (rel[a] - 2.0 * tol > 0.0) {
+      P = rel[a] - 2.0 * tol;
+    } else if (rel[a] + size[a] + 2.0 * tol < 0.0) {
+      P = rel[a] + size[a] + 2.0 * tol;
+    } else {
+      continue;
+    }
+    const double k = near_ / P;  // linear(k e_a), written out.
+    depth->add(PixelAffine{k * d0_[a], k * dx_[a], k * dy_[a]}, w_, h_);
+  }
+}
+
+bool OcclusionBuffer::hides(const Vec3& rel, const Vec3& size, double tol, bool fine) const {
   if (!on() || written_ == 0) return false;
   tol += 4.0 * kEps * (max_abs(rel) + max_abs(size));
   double zmin = glm::dot(f_, rel);
@@ -557,18 +600,25 @@ bool OcclusionBuffer::hides(const Vec3& rel, const Vec3& size, double tol) const
   zmin -= 2.0 * tol;
   if (!(zmin > near_)) return false;  // Crossing the near plane or behind the eye.
   const double wmin = near_ / zmin;
+  OccludeeDepth depth{rel, size, tol};
+  OccludeeDepth* planes = fine ? &depth : nullptr;
   const double X0 = glm::dot(r_, rel), Y0 = glm::dot(u_, rel), Z0 = glm::dot(f_, rel);
   {
     // Quick rejection: the pixel of the box's centre must hold a larger
-    // bound (a necessary condition only, so any rounding is harmless).
+    // bound than the box's over that pixel (a necessary condition only, so
+    // any rounding is harmless).
     const Vec3 ch = 0.5 * size;
     const double izc = 1.0 / (Z0 + glm::dot(f_, ch));
     const double xi = ((X0 + glm::dot(r_, ch)) * izc * inv_tan_x_ + 1.0) * 0.5 * w_;
     const double yi = ((Y0 + glm::dot(u_, ch)) * izc * inv_tan_y_ + 1.0) * 0.5 * h_;
     if (xi >= 0.0 && xi < w_ && yi >= 0.0 && yi < h_) {
       const int i = static_cast<int>(xi), j = static_cast<int>(yi);
-      if (!(static_cast<double>(px_[static_cast<std::size_t>(j) * static_cast<std::size_t>(stride_) + static_cast<std::size_t>(i)]) > wmin))
-        return false;
+      const double v = static_cast<double>(px_[static_cast<std::size_t>(j) * static_cast<std::size_t>(stride_) + static_cast<std::size_t>(i)]);
+      if (!(v > wmin)) {
+        if (!planes) return false;
+        entry_planes(planes);
+        if (!(v > planes->bound(wmin, i, i, j, j))) return false;
+      }
     }
   }
   // The box's X, Y and Z ranges bound its corners' slopes X/Z and Y/Z:
@@ -582,8 +632,24 @@ bool OcclusionBuffer::hides(const Vec3& rel, const Vec3& size, double tol) const
     (ez < 0.0 ? zlo : zhi) += ez;
   }
   const double izlo = 1.0 / zlo, izhi = 1.0 / zhi;
-  const double x0 = xlo * (xlo < 0.0 ? izlo : izhi), x1 = xhi * (xhi > 0.0 ? izlo : izhi);
-  const double y0 = ylo * (ylo < 0.0 ? izlo : izhi), y1 = yhi * (yhi > 0.0 ? izlo : izhi);
+  double x0 = xlo * (xlo < 0.0 ? izlo : izhi), x1 = xhi * (xhi > 0.0 ? izlo : izhi);
+  double y0 = ylo * (ylo < 0.0 ? izlo : izhi), y1 = yhi * (yhi > 0.0 ? izlo : izhi);
+  if (fine) {
+    // The corners' own slopes (all beyond the near plane): the hull of the
+    // box's projection, where the superset above can reach far beyond it (a
+    // long box seen at a slant: its far top corner's height over its
+    // nearest depth).
+    x0 = y0 = kInf;
+    x1 = y1 = -kInf;
+    for (int k = 0; k < 8; ++k) {
+      double X = X0, Y = Y0, Z = Z0;
+      for (int a = 0; a < 3; ++a)
+        if (k >> a & 1) X += r_[a] * size[a], Y += u_[a] * size[a], Z += f_[a] * size[a];
+      const double iz = 1.0 / Z;
+      x0 = std::fmin(x0, X * iz), x1 = std::fmax(x1, X * iz);
+      y0 = std::fmin(y0, Y * iz), y1 = std::fmax(y1, Y * iz);
+    }
+  }
   // A corner's position is good to tol (world units) in X, Y and Z: its
   // slope X/Z moves by at most tol (1 + |X/Z|) / Z. Plus a millionth of a
   // pixel, so that a point on a pixel boundary counts for both pixels.
@@ -598,16 +664,41 @@ bool OcclusionBuffer::hides(const Vec3& rel, const Vec3& size, double tol) const
   if (!rect(x0 * inv_tan_x_ - mx, x1 * inv_tan_x_ + mx, y0 * inv_tan_y_ - my, y1 * inv_tan_y_ + my, &i0, &i1, &j0,
             &j1))
     return false;
-  return rect_hidden(i0, i1, j0, j1, wmin);
+  return rect_hidden(i0, i1, j0, j1, wmin, planes);
 }
 
-bool OcclusionBuffer::hides_world(const Vec3& lo, const Vec3& hi) const {
+bool OcclusionBuffer::hides_world(const Vec3& lo, const Vec3& hi, bool fine) const {
   if (!on() || written_ == 0) return false;
   const double tol = 1e-12 * (max_abs(lo) + max_abs(hi) + max_abs(eye_) + 1.0);
-  return hides(lo - eye_, hi - lo, tol);
+  return hides(lo - eye_, hi - lo, tol, fine);
 }
 
-bool OcclusionBuffer::hides_sphere(const Vec3& center, double radius) const {
+bool OcclusionBuffer::hides_world_split(const Vec3& lo, const Vec3& hi, int levels) const {
+  // A piece wholly outside the frustum is seen by no ray of the frame.
+  if (!view_.may_intersect_box(lo, hi) || hides_world(lo, hi, true)) return true;
+  if (levels <= 0) return false;
+  // One depth over the box's whole rectangle is loose when the box spans a
+  // range of depths (a box under a floor seen at a slant: the far part of
+  // its rectangle shows floor beyond the box's nearest point). Each half
+  // has a narrower rectangle and a nearer-to-true least depth; the box is
+  // hidden when both halves are. The nearer half first: it is the likelier
+  // to be visible, which ends the test.
+  const Vec3 size = hi - lo;
+  int a = 0;
+  for (int k = 1; k < 3; ++k)
+    if (size[k] > size[a]) a = k;
+  const double mid = lo[a] + 0.5 * size[a];
+  if (!(mid > lo[a] && mid < hi[a])) return false;
+  Vec3 near_hi = hi, far_lo = lo;
+  near_hi[a] = mid;
+  far_lo[a] = mid;
+  const bool low_nearer = f_[a] >= 0.0;
+  const Vec3 l1 = low_nearer ? lo : far_lo, h1 = low_nearer ? near_hi : hi;
+  const Vec3 l2 = low_nearer ? far_lo : lo, h2 = low_nearer ? hi : near_hi;
+  return hides_world_split(l1, h1, levels - 1) && hides_world_split(l2, h2, levels - 1);
+}
+
+bool OcclusionBuffer::hides_sphere(const Vec3& center, double radius, bool fine) const {
   if (!on() || written_ == 0) return false;
   const double mag = max_abs(eye_) + max_abs(center) + radius;
   // The ball grown by the rounding of center - eye; its nearest depth is
@@ -618,7 +709,7 @@ bool OcclusionBuffer::hides_sphere(const Vec3& center, double radius) const {
   const double zmin = zc - r - 4.0 * kEps * mag;
   // Nearly touching the eye's plane, the outline's slopes lose precision:
   // the bounding box answers instead.
-  if (!(zmin > near_) || !(zc - r > 1e-3 * r)) return hides_world(center - radius, center + radius);
+  if (!(zmin > near_) || !(zc - r > 1e-3 * r)) return hides_world(center - radius, center + radius, fine);
   double x0, x1, y0, y1;
   if (!sphere_range(w, r, &x0, &x1, &y0, &y1)) return false;
   // Rounding of the slopes: a few eps of (|w| + r)^2 / (zc^2 - r^2), times
@@ -631,7 +722,9 @@ bool OcclusionBuffer::hides_sphere(const Vec3& center, double radius) const {
   const double mx = e * (1.0 + sxm) / tan_x_ + 2e-6 / w_, my = e * (1.0 + sym) / tan_y_ + 2e-6 / h_;
   int i0, i1, j0, j1;
   if (!rect(x0 - mx, x1 + mx, y0 - my, y1 + my, &i0, &i1, &j0, &j1)) return false;
-  return rect_hidden(i0, i1, j0, j1, near_ / zmin);
+  // Over each pixel, no nearer than the ball's bounding box there.
+  OccludeeDepth depth{w - r, Vec3(2.0 * r), 4.0 * kEps * mag};
+  return rect_hidden(i0, i1, j0, j1, near_ / zmin, fine ? &depth : nullptr);
 }
 
 }  // namespace voxvis::detail

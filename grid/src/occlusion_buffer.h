@@ -35,12 +35,24 @@
 // slack and rounded down to float, so a rounding can only drop a pixel or
 // loosen a bound.
 //
-// Tests (outer coverage, nearest depth). A box is hidden when it lies wholly
-// beyond the near plane and every pixel that its projection may touch (the
-// bounding rectangle of its corners' projections, widened by an allowance)
-// holds a bound w > 1 / (the box's least depth). Every ray to a point p of the
-// box then passes through such a pixel and meets an occluder beyond the near
-// plane at a depth < depth(p): p is not the first hit of that ray.
+// Tests (outer coverage, nearest depth over each pixel). A box is hidden
+// when it lies wholly beyond the near plane and every pixel that its
+// projection may touch (the bounding rectangle of its corners' projections,
+// widened by an allowance) holds a bound w greater than the box's largest
+// reciprocal depth over that pixel: the least of near / (the box's least
+// depth) and, for each axis along which the eye lies outside the box's
+// slab, the entry plane's near * d_a / P at the pixel corner where it is
+// largest (a ray meeting the box does so at depth >= P / d_a, and near d_a / P
+// is affine over the pixel). Every ray to a point p of the box then passes
+// through such a pixel and meets an occluder beyond the near plane at a
+// depth < depth(p): p is not the first hit of that ray. (A ray through the
+// pixel that misses the box needs nothing.) A ball is tested the same way
+// with its own outline's rectangle, its least depth and its bounding box's
+// planes. The planes (and, with them, the rectangle of the corners' own
+// projections rather than a quicker superset) make a large box seen at a
+// slant testable: one depth over its whole rectangle would be its nearest
+// corner's. They cost more for a box in view, so the traversal's first
+// tests of cells and objects go without them (`fine` below).
 //
 // Tiles. Each 8x8 tile keeps the smallest bound of its pixels (0 where any
 // is empty), recomputed only when a test reads a tile that occluders wrote
@@ -50,6 +62,7 @@
 // its own largest one.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -84,6 +97,39 @@ struct ConvexOccluder {
   int i0 = 0, i1 = -1, j0 = 0, j1 = -1;  ///< Pixel rectangle that may be written.
 };
 
+/// An occludee's largest reciprocal depth over a pixel rectangle, from the
+/// entry planes of a box around it (OcclusionBuffer::hides): the least, over
+/// the planes, of a plane's largest value over the rectangle's corners,
+/// raised by an allowance for the rounding of the evaluation. The planes are
+/// derived only when a test first needs them.
+struct OccludeeDepth {
+  OccludeeDepth(const Vec3& rel_, const Vec3& size_, double tol_) : rel(rel_), size(size_), tol(tol_) {}
+
+  Vec3 rel, size;  ///< The box: least corner relative to the eye, extents.
+  double tol;      ///< Their error, world units.
+  int planes = -1; ///< -1: not derived yet.
+  PixelAffine plane[3];
+  double margin[3] = {0.0, 0.0, 0.0};
+
+  void add(const PixelAffine& p, int w, int h) {
+    plane[planes] = p;
+    margin[planes] = 1e-9 * (std::fabs(p.c) + std::fabs(p.gx) * w + std::fabs(p.gy) * h);
+    ++planes;
+  }
+  /// Plane k's largest value over pixels [i0, i1] x [j0, j1] (closed squares).
+  double max_over(int k, int i0, int i1, int j0, int j1) const {
+    const PixelAffine& p = plane[k];
+    const double X = p.gx > 0.0 ? i1 + 1.0 : static_cast<double>(i0);
+    const double Y = p.gy > 0.0 ? j1 + 1.0 : static_cast<double>(j0);
+    return p.c + p.gx * X + p.gy * Y + margin[k];
+  }
+  /// The least of w and every plane's largest value over the rectangle.
+  double bound(double w, int i0, int i1, int j0, int j1) const {
+    for (int k = 0; k < planes; ++k) w = std::fmin(w, max_over(k, i0, i1, j0, j1));
+    return w;
+  }
+};
+
 class OcclusionBuffer {
  public:
   static constexpr int kTile = 8;
@@ -105,13 +151,22 @@ class OcclusionBuffer {
   /// Whether the axis-aligned box with least corner eye + rel and extents
   /// `size` (world units) is hidden. `tol` bounds the error of `rel` and
   /// `size` (world units).
-  bool hides(const Vec3& rel, const Vec3& size, double tol) const;
+  /// `fine`: over each pixel at the box's own depth there (its entry
+  /// planes; see "Tests" above), else at its least depth everywhere: fine
+  /// hides more of a large box or one seen at a slant, at some cost.
+  bool hides(const Vec3& rel, const Vec3& size, double tol, bool fine = false) const;
   /// The same for a world box.
-  bool hides_world(const Vec3& lo, const Vec3& hi) const;
+  bool hides_world(const Vec3& lo, const Vec3& hi, bool fine = false) const;
+  /// The same, fine, and when the box is not proved hidden whole, its
+  /// halves (along its longest side) tested the same way, to `levels`
+  /// levels: the box is hidden when every piece is, a piece wholly outside
+  /// the frustum counting as hidden (no ray of the frame reaches it). For
+  /// large boxes, whose rectangle reaches far beyond what hides them.
+  bool hides_world_split(const Vec3& lo, const Vec3& hi, int levels) const;
   /// Whether the ball of `radius` around `center` (world units) is hidden:
   /// tested over the pixels of its own image rectangle, at its nearest depth,
   /// so tighter than its bounding box.
-  bool hides_sphere(const Vec3& center, double radius) const;
+  bool hides_sphere(const Vec3& center, double radius, bool fine = false) const;
 
   /// The largest depth bound over the whole image: every ray of the frustum
   /// meets an occluder beyond the near plane no deeper than this; +inf while
@@ -134,8 +189,12 @@ class OcclusionBuffer {
   /// when the ball reaches the eye's plane.
   bool sphere_range(const Vec3& w, double radius, double* x0, double* x1, double* y0, double* y1) const;
   /// Whether every pixel of [i0..i1] x [j0..j1] holds a bound above w
-  /// (near / depth).
-  bool rect_hidden(int i0, int i1, int j0, int j1, double w) const;
+  /// (near / depth) and above the occludee's `depth` over that pixel.
+  bool rect_hidden(int i0, int i1, int j0, int j1, double w, OccludeeDepth* depth) const;
+  /// Derives the entry planes of the box of `depth` if not done yet: over
+  /// a pixel, no point of the box lies nearer than every plane's bound there
+  /// allows.
+  void entry_planes(OccludeeDepth* depth) const;
   /// The affine function of the pixel coordinates equal to n·d.
   PixelAffine linear(const Vec3& n) const;
   /// Adds the constraint that a planar convex polygon (vertices relative to
@@ -151,6 +210,7 @@ class OcclusionBuffer {
   /// Smallest bound of tile t (written this frame), refreshed when stale.
   float tile_min(std::size_t t) const;
 
+  WorldFrustum view_;
   Vec3 eye_{0.0}, f_{0.0}, r_{0.0}, u_{0.0};
   Vec3 d0_{0.0}, dx_{0.0}, dy_{0.0};  ///< d(X, Y) = d0 + X dx + Y dy.
   double tan_x_ = 1.0, tan_y_ = 1.0, near_ = 0.0;

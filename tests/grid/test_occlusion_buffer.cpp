@@ -65,6 +65,30 @@ TEST(OcclusionBuffer, BoxPeekingOutByAFractionOfAPixelIsNotHidden) {
   EXPECT_FALSE(ob.hides_world(Vec3(-1, -peek, -21), Vec3(1, 1, -20)));
 }
 
+TEST(OcclusionBuffer, FineTestHidesALongBoxUnderAFloorSeenAtASlant) {
+  // Looking down at a slant over a floor slab (top at y = -1): a long box
+  // under it spans depths 5 to 30. At its least depth (its near corner) it
+  // is not hidden over its whole rectangle, whose far part shows floor much
+  // nearer than the box there; tested over each pixel at its own depth
+  // there (its entry planes), it is.
+  const Camera cam = camera_along(Vec3(0.0), glm::normalize(Vec3(0.0, -0.4, -1.0)), 60.0, 1.0, 0.1);
+  OcclusionBuffer ob = begin(cam, 128);
+  ASSERT_TRUE(ob.render_box(Vec3(-50, -2, -60), Vec3(50, -1, 1)));
+  const Vec3 lo(-3, -6, -30), hi(3, -3, -5);
+  EXPECT_FALSE(ob.hides_world(lo, hi));
+  EXPECT_TRUE(ob.hides_world(lo, hi, true));
+  EXPECT_TRUE(ob.hides_world_split(lo, hi, 0));
+  // Reaching a tenth above the floor's top: seen, whatever the test.
+  EXPECT_FALSE(ob.hides_world(lo, Vec3(3, -0.9, -5), true));
+  EXPECT_FALSE(ob.hides_world_split(lo, Vec3(3, -0.9, -5), 4));
+  // A ball under the floor, tested fine with its bounding box's planes.
+  EXPECT_TRUE(ob.hides_sphere(Vec3(0, -8, -20), 6.5, true));
+  EXPECT_FALSE(ob.hides_sphere(Vec3(0, -8, -20), 7.2, true));
+  // Half of a box out of view to the side and the rest under the floor:
+  // the split test drops the pieces no ray of the frame reaches.
+  EXPECT_TRUE(ob.hides_world_split(Vec3(-3, -6, -30), Vec3(60, -3, -5), 3));
+}
+
 TEST(OcclusionBuffer, EyeOnABoxFacePlaneWritesNoRayHeadingOutThroughIt) {
   // The eye lies exactly on the plane of the (shrunk) box's low x face,
   // beside the box: L.x = lo.x + delta - eye.x is exactly 0 in the box's
@@ -296,6 +320,88 @@ TEST(OcclusionBuffer, HiddenSpheresAreHiddenForEveryRay) {
     }
   }
   EXPECT_GT(hidden, 50) << "too few hidden balls: the test proves little";
+}
+
+TEST(OcclusionBuffer, FinelyHiddenBoxesAreHiddenForEveryRay) {
+  // Random occluders (a floor slab below the eye among them, seen at a
+  // slant), random boxes long and short: whenever the fine test or the
+  // split test says hidden, every sampled point of the box in view has an
+  // occluder hit before it on its ray. Balls tested fine, the same.
+  Rng rng(78);
+  int hidden = 0, fine_only = 0, balls = 0;
+  for (int trial = 0; trial < scaled(200); ++trial) {
+    Camera cam = look_down_z(rng.uniform(20.0, 150.0), rng.uniform(0.5, 2.0), rng.log_uniform(1e-3, 0.5));
+    cam.eye = rng.in_box(Vec3(-3), Vec3(3));
+    cam.dir = glm::normalize(Vec3(rng.uniform(-0.3, 0.3), rng.uniform(-0.8, 0.1), -1.0));
+    ViewBasis vb;
+    ASSERT_TRUE(make_basis(cam, &vb));
+    OcclusionBuffer ob = begin(cam, rng.chance(0.5) ? 32 : 128);
+    std::vector<ObjectDesc> occ;
+    occ.push_back(box_between(1, Vec3(-80, cam.eye.y - rng.uniform(1.0, 3.0) - 1.0, -80),
+                              Vec3(80, cam.eye.y - rng.uniform(0.5, 1.0), 1)));
+    for (int k = 1; k < 5; ++k) {
+      const Vec3 at = cam.eye + vb.f * rng.uniform(3.0, 12.0) + rng.in_box(Vec3(-4, -4, 0), Vec3(4, 4, 0));
+      if (rng.chance(0.5)) {
+        occ.push_back(sphere(k + 1, at, rng.uniform(0.5, 4.0)));
+      } else {
+        occ.push_back(box_around(k + 1, at, rng.in_box(Vec3(0.3), Vec3(4.0))));
+      }
+    }
+    for (const ObjectDesc& o : occ) {
+      if (o.shape == Shape::Sphere) {
+        ob.render_sphere(o.center, o.radius);
+      } else {
+        ob.render_box(o.center - o.half_extent, o.center + o.half_extent);
+      }
+    }
+    for (int q = 0; q < 40; ++q) {
+      const Vec3 c = cam.eye + vb.f * rng.uniform(2.0, 30.0) + rng.in_box(Vec3(-8, -10, 0), Vec3(8, 4, 0));
+      const Vec3 half = q % 2 ? rng.in_box(Vec3(0.05), Vec3(1.0)) : rng.in_box(Vec3(0.2, 0.2, 2.0), Vec3(3.0, 2.0, 12.0));
+      const bool ball = q % 5 == 0;
+      bool says_hidden = false;
+      if (ball) {
+        says_hidden = ob.hides_sphere(c, half.x, true);
+        balls += says_hidden;
+      } else if (q % 3 == 0) {
+        says_hidden = ob.hides_world_split(c - half, c + half, 3);
+      } else {
+        says_hidden = ob.hides_world(c - half, c + half, true);
+        fine_only += says_hidden && !ob.hides_world(c - half, c + half);
+      }
+      if (!says_hidden) continue;
+      ++hidden;
+      for (int s = 0; s < 300; ++s) {
+        // Points on the box's faces and inside it (or the ball's).
+        Vec3 p;
+        if (ball) {
+          p = c + rng.unit_vector() * (s % 2 ? half.x : half.x * rng.uniform());
+        } else {
+          p = c + rng.in_box(-half, half);
+          if (s % 2) {
+            const int a = rng.uniform_int(0, 2);
+            p[a] = c[a] + (rng.chance(0.5) ? half[a] : -half[a]);
+          }
+        }
+        const double depth = glm::dot(p - vb.eye, vb.f);
+        if (!(depth >= cam.near)) continue;
+        const Vec3 d = (p - vb.eye) / depth;  // d·f = 1: parameter = depth.
+        const double x = glm::dot(p - vb.eye, vb.right) / (depth * vb.tanx);
+        const double y = glm::dot(p - vb.eye, vb.up) / (depth * vb.tany);
+        if (!(std::fabs(x) <= 1.0 && std::fabs(y) <= 1.0)) continue;  // Out of view.
+        bool blocked = false;
+        for (const ObjectDesc& o : occ) {
+          double t0 = 0.0, t1 = 0.0;
+          if (intersect(o, vb.eye, d, &t0, &t1) && t1 >= cam.near && std::max(t0, cam.near) < depth) blocked = true;
+        }
+        ASSERT_TRUE(blocked) << "hidden " << (ball ? "ball" : "box") << " has a point in view: centre " << c.x << ","
+                             << c.y << "," << c.z << " half " << half.x << "," << half.y << "," << half.z << " "
+                             << describe(cam);
+      }
+    }
+  }
+  EXPECT_GT(hidden, 200) << "too few hidden boxes: the test proves little";
+  EXPECT_GT(fine_only, 20) << "the fine test hid no more than the coarse one";
+  EXPECT_GT(balls, 10);
 }
 
 SceneOptions with_buffer(std::uint64_t seed, int width) {
