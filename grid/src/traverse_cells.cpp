@@ -90,13 +90,14 @@ void CellTraversal::enter(int l, const glm::ivec3& c, bool full) {
   for (int a = 0; a < 3; ++a) zmin += std::fmin(0.0, wf_.f[a] * (hi[a] - lo[a]));
   const double tol = 1e-12 * (max_abs(lo) + max_abs(hi) + max_abs(wf_.eye) + 1.0);
   const bool beyond = beyond_buffer(zmin - 4.0 * tol);
-  // A brick holding something is tested fine (over each pixel at its own
-  // depth there): a brick behind a wall seen at a slant is then skipped, and
-  // its voxels stay out of the seen record, which keeps TBVs of the objects
-  // behind the wall from being cut short (or, cut too short, left whole and
-  // revealed). Coarser cells are tested at their least depth: a visible one
-  // is the usual case there, and the fine test of a visible box costs more.
-  if (beyond || w_.ob.hides_world(lo, hi, full && l == 1)) {
+  // In a scene with dynamic objects, a brick holding something is tested
+  // fine (over each pixel at its own depth there): a brick behind a wall
+  // seen at a slant is then skipped, and its voxels stay out of the seen
+  // record, which keeps TBVs of the objects behind the wall from being cut
+  // short (or, cut too short, left whole and revealed). Elsewhere cells are
+  // tested at their least depth: a visible one is the usual case, and the
+  // fine test of a visible box costs more.
+  if (beyond || w_.ob.hides_world(lo, hi, has_dyn_ && full && l == 1)) {
     st_.early_exit = st_.early_exit || beyond;
     ++st_.cells_hidden;
     const VoxBox b = s_.pyr.span(l, c, 0);
