@@ -610,25 +610,40 @@ void Scene::Impl::renew_tbv(std::uint32_t slot, double now) {
   Vec3 lo, hi;
   bool cut = false;
   const double period = tbv_box(slot, &lo, &hi, &cut);
+  // Entries are written per range of bricks (its coarsest cells), so a
+  // range that did not change writes nothing, and one that changed is
+  // written anew: the old entries go stale (a new generation), about the
+  // TBV's surface in cells.
+  const auto bricks_of = [](const VoxBox& b) {
+    return b.empty() ? b : VoxBox{b.lo >> detail::kBrickShift, b.hi >> detail::kBrickShift};
+  };
+  const VoxBox old_vb = o.tbv_voxels;
   if (cut) {
-    const std::uint64_t epoch = wake_epoch;
-    drop_tbv(slot);
-    make_tbv(slot, now);
-    wake_epoch = epoch;
+    // The cut box replaces the old one. Over the same bricks (an unmoved
+    // object beside seen space that has not moved: the usual case) the
+    // entries stand as they are: both traversals test the TBV's own box or
+    // voxel range, never a brick's, before revealing it.
+    const double sc = slop(std::fmax(max_abs(lo), max_abs(hi)));
+    const VoxBox vb = touch_range(lo, hi, sc);
+    if (bricks_of(vb) != bricks_of(old_vb)) {
+      const std::uint64_t epoch = wake_epoch;
+      drop_tbv(slot);
+      make_tbv(slot, now);
+      wake_epoch = epoch;
+      return;
+    }
+    o.tbv_lo = lo;
+    o.tbv_hi = hi;
+    o.tbv_voxels = vb;
+    o.tbv_expiry = expiry_after(now, period);
+    ++o.tbv_epoch;
+    expiry.push({o.tbv_expiry, slot, o.tbv_epoch});
     return;
   }
   o.tbv_lo = glm::min(o.tbv_lo, lo);
   o.tbv_hi = glm::max(o.tbv_hi, hi);
-  const VoxBox old_vb = o.tbv_voxels;
   const double s = slop(std::fmax(max_abs(o.tbv_lo), max_abs(o.tbv_hi)));
   o.tbv_voxels = touch_range(o.tbv_lo, o.tbv_hi, s);
-  // Entries are written per range of bricks (its coarsest cells), so a
-  // range that did not change writes nothing, and one that grew is written
-  // anew: the old entries go stale (a new generation), about the TBV's
-  // surface in cells.
-  const auto bricks_of = [](const VoxBox& b) {
-    return b.empty() ? b : VoxBox{b.lo >> detail::kBrickShift, b.hi >> detail::kBrickShift};
-  };
   if (bricks_of(o.tbv_voxels) != bricks_of(old_vb)) {
     brick_remove(old_vb);
     ++o.tbv_gen;
