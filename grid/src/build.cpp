@@ -456,8 +456,42 @@ void build_static_masks(Scene::Impl& s) {
 
 /// The per-brick lists of the cell traversal (Scene::Impl::brick_static,
 /// brick_boxes), from the voxels' own lists and opaque owners.
+/// Which opaque boxes lie wholly inside one static object: the object's own
+/// occluder, drawn whenever the traversal reaches a brick of the box (it is
+/// stored there or above), already covers the box's image at least as near
+/// for a box object, and all but slivers at the rim for a ball (its
+/// inscribed polygons); a box of the union across objects is what closes
+/// seams, and those are kept. Leaving an occluder out is always
+/// conservative. Candidates: the objects at the box's least corner voxel.
+std::vector<std::uint8_t> boxes_inside_one_object(const Scene::Impl& s) {
+  std::vector<std::uint8_t> inside(s.opaque_boxes.size(), 0);
+  const detail::IdLists& own = s.static_lists[0];
+  const GridSpec& g = s.spec;
+  for (std::size_t b = 0; b < s.opaque_boxes.size(); ++b) {
+    const VoxBox& vb = s.opaque_boxes[b];
+    const Vec3 lo = g.bounds_min + Vec3(vb.lo) * g.voxel_size, hi = g.bounds_min + Vec3(vb.hi + 1) * g.voxel_size;
+    const auto i = static_cast<std::size_t>(s.index(vb.lo.x, vb.lo.y, vb.lo.z));
+    std::uint32_t slots[detail::kCoverCandidates];
+    std::size_t n = 0;
+    for (const std::uint32_t* p = own.begin(i); p != own.end(i) && n < std::size(slots); ++p) slots[n++] = *p;
+    if (s.vflags[i] & Scene::Impl::kCoarseIds) s.coarse_static(vb.lo.x, vb.lo.y, vb.lo.z, slots, &n, std::size(slots));
+    for (std::size_t k = 0; k < n && !inside[b]; ++k) {
+      const Obj& o = s.objs[slots[k]];
+      if (o.shape == Shape::Sphere) {
+        // The farthest corner from the centre within the radius.
+        const Vec3 far = glm::max(glm::abs(lo - o.center), glm::abs(hi - o.center));
+        inside[b] = glm::dot(far, far) <= o.radius * o.radius;
+      } else {
+        inside[b] = glm::all(glm::lessThanEqual(o.box_lo(), lo)) && glm::all(glm::lessThanEqual(hi, o.box_hi()));
+      }
+    }
+  }
+  return inside;
+}
+
 void build_brick_lists(Scene::Impl& s) {
   const std::size_t bricks = s.pyr.cells(1);
+  const std::vector<std::uint8_t> redundant = boxes_inside_one_object(s);
   const detail::IdLists& own = s.static_lists[0];
   std::vector<std::uint32_t> obj_mark(s.objs.size(), ~0u), box_mark(s.opaque_boxes.size(), ~0u);
   detail::IdLists& objs = s.brick_static;
@@ -485,7 +519,7 @@ void build_brick_lists(Scene::Impl& s) {
           }
       if (!s.opaque_owner.empty() && (s.vflags[idx] & Scene::Impl::kStaticOpaque)) {
         const std::uint32_t box = s.opaque_owner[idx];
-        if (box != detail::kNoBox && box_mark[box] != tag) {
+        if (box != detail::kNoBox && !redundant[box] && box_mark[box] != tag) {
           box_mark[box] = tag;
           boxes.ids.push_back(box);
         }

@@ -5,11 +5,17 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <memory>
 #include <string>
+#include <vector>
+
+#include <glm/geometric.hpp>
+#include <glm/vector_relational.hpp>
 
 #include "engine_check.h"
 #include "opaque_boxes.h"
 #include "raycast.h"
+#include "scene_impl.h"
 #include "scenes.h"
 
 namespace voxvis::test {
@@ -153,6 +159,49 @@ TEST(OpaqueBoxes, NoneWithoutTheBit) {
   detail::cover_with_boxes(glm::ivec3(3), flags, 1, 16, &boxes, &owner);
   EXPECT_TRUE(boxes.empty());
   EXPECT_TRUE(owner.empty());
+}
+
+TEST(OpaqueBoxes, BoxesInsideOneObjectAreLeftToItsOwnOccluder) {
+  // A large block, a ball, and two blocks abutting at x = 24: the opaque
+  // boxes inside the large block or the ball are not drawn (the object's
+  // own occluder covers them), but a box across the two abutting blocks,
+  // which closes their seam, is.
+  SceneDesc d;
+  d.bounds_min = Vec3(0.0);
+  d.bounds_max = Vec3(32.0);
+  d.grid = glm::ivec3(32);
+  d.objects.push_back(box_between(1, Vec3(2.0), Vec3(14.0)));
+  d.objects.push_back(box_between(2, Vec3(18, 2, 2), Vec3(24, 8, 8)));
+  d.objects.push_back(box_between(3, Vec3(24, 2, 2), Vec3(30, 8, 8)));
+  d.objects.push_back(sphere(4, Vec3(24.0), 6.0));
+  std::unique_ptr<Scene> scene;
+  ASSERT_TRUE(Scene::create(d, SceneOptions{}, &scene).ok);
+  const Scene::Impl& s = scene->impl();
+  ASSERT_FALSE(s.opaque_boxes.empty());
+  std::vector<bool> drawn(s.opaque_boxes.size(), false);
+  for (std::uint32_t id : s.brick_boxes.ids) drawn[id] = true;
+  auto inside_one = [&](const detail::VoxBox& b) {
+    const Vec3 lo(b.lo), hi(b.hi + 1);  // Unit voxels from the origin.
+    for (const ObjectDesc& o : d.objects) {
+      if (o.shape == Shape::Sphere) {
+        const Vec3 far = glm::max(glm::abs(lo - o.center), glm::abs(hi - o.center));
+        if (glm::dot(far, far) <= o.radius * o.radius) return true;
+      } else if (glm::all(glm::lessThanEqual(o.center - o.half_extent, lo)) &&
+                 glm::all(glm::lessThanEqual(hi, o.center + o.half_extent))) {
+        return true;
+      }
+    }
+    return false;
+  };
+  int left = 0, across = 0;
+  for (std::size_t b = 0; b < s.opaque_boxes.size(); ++b) {
+    const detail::VoxBox& vb = s.opaque_boxes[b];
+    EXPECT_EQ(drawn[b], !inside_one(vb)) << "box " << b;
+    left += !drawn[b];
+    across += drawn[b] && vb.lo.x <= 23 && vb.hi.x >= 24;
+  }
+  EXPECT_GT(left, 0);
+  EXPECT_GT(across, 0);
 }
 
 }  // namespace
