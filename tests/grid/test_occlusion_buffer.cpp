@@ -262,29 +262,61 @@ TEST(OcclusionBuffer, SphereTestIsTighterThanItsBox) {
   EXPECT_FALSE(ob.hides_sphere(Vec3(0.45 * 20.0, 0.0, -20.0), 1.0));
 }
 
+/// A random camera near the origin looking down -z, pitched by up to
+/// `pitch_lo`..`pitch_hi` (the y component of its direction before
+/// normalizing), with a random lens and near plane.
+Camera random_camera(Rng& rng, double pitch_lo, double pitch_hi) {
+  Camera cam = look_down_z(rng.uniform(20.0, 150.0), rng.uniform(0.5, 2.0), rng.log_uniform(1e-3, 0.5));
+  cam.eye = rng.in_box(Vec3(-3), Vec3(3));
+  cam.dir = glm::normalize(Vec3(rng.uniform(-0.3, 0.3), rng.uniform(pitch_lo, pitch_hi), -1.0));
+  return cam;
+}
+
+/// Random occluders ahead of the camera, ids from `first_id`, each a ball
+/// or a box, rendered into `ob` and appended to `occ`.
+void add_random_occluders(Rng& rng, const Camera& cam, const ViewBasis& vb, int first_id, int count,
+                          OcclusionBuffer* ob, std::vector<ObjectDesc>* occ) {
+  for (int k = 0; k < count; ++k) {
+    const Vec3 at = cam.eye + vb.f * rng.uniform(3.0, 12.0) + rng.in_box(Vec3(-4, -4, 0), Vec3(4, 4, 0));
+    if (rng.chance(0.5)) {
+      occ->push_back(sphere(first_id + k, at, rng.uniform(0.5, 4.0)));
+      ob->render_sphere(occ->back().center, occ->back().radius);
+    } else {
+      occ->push_back(box_around(first_id + k, at, rng.in_box(Vec3(0.3), Vec3(4.0))));
+      ob->render_box(occ->back().center - occ->back().half_extent, occ->back().center + occ->back().half_extent);
+    }
+  }
+}
+
+/// For a point p: -1 when it is out of view (beyond the image or before the
+/// near plane), 1 when its ray from the eye is inside an occluder beyond the
+/// near plane strictly before p, else 0.
+int hit_before(const std::vector<ObjectDesc>& occ, const ViewBasis& vb, double near, const Vec3& p) {
+  const double depth = glm::dot(p - vb.eye, vb.f);
+  if (!(depth >= near)) return -1;
+  const Vec3 d = (p - vb.eye) / depth;  // d·f = 1: parameter = depth.
+  const double x = glm::dot(p - vb.eye, vb.right) / (depth * vb.tanx);
+  const double y = glm::dot(p - vb.eye, vb.up) / (depth * vb.tany);
+  if (!(std::fabs(x) <= 1.0 && std::fabs(y) <= 1.0)) return -1;
+  for (const ObjectDesc& o : occ) {
+    double t0 = 0.0, t1 = 0.0;
+    if (intersect(o, vb.eye, d, &t0, &t1) && t1 >= near && std::max(t0, near) < depth) return 1;
+  }
+  return 0;
+}
+
 TEST(OcclusionBuffer, HiddenSpheresAreHiddenForEveryRay) {
   // Random occluders, random balls: whenever hides_sphere says hidden, every
   // sampled point of the ball has an occluder hit before it on its ray.
   Rng rng(77);
   int hidden = 0;
   for (int trial = 0; trial < scaled(200); ++trial) {
-    Camera cam = look_down_z(rng.uniform(20.0, 150.0), rng.uniform(0.5, 2.0), rng.log_uniform(1e-3, 0.5));
-    cam.eye = rng.in_box(Vec3(-3), Vec3(3));
-    cam.dir = glm::normalize(Vec3(rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), -1.0));
+    const Camera cam = random_camera(rng, -0.3, 0.3);
     ViewBasis vb;
     ASSERT_TRUE(make_basis(cam, &vb));
     OcclusionBuffer ob = begin(cam, rng.chance(0.5) ? 32 : 128);
     std::vector<ObjectDesc> occ;
-    for (int k = 0; k < 6; ++k) {
-      const Vec3 at = cam.eye + vb.f * rng.uniform(3.0, 12.0) + rng.in_box(Vec3(-4, -4, 0), Vec3(4, 4, 0));
-      if (rng.chance(0.5)) {
-        occ.push_back(sphere(k + 1, at, rng.uniform(0.5, 4.0)));
-        ob.render_sphere(occ.back().center, occ.back().radius);
-      } else {
-        occ.push_back(box_around(k + 1, at, rng.in_box(Vec3(0.3), Vec3(4.0))));
-        ob.render_box(occ.back().center - occ.back().half_extent, occ.back().center + occ.back().half_extent);
-      }
-    }
+    add_random_occluders(rng, cam, vb, 1, 6, &ob, &occ);
     for (int q = 0; q < 40; ++q) {
       Vec3 c = cam.eye + vb.f * rng.uniform(2.0, 30.0) + rng.in_box(Vec3(-6, -6, 0), Vec3(6, 6, 0));
       const double r = rng.log_uniform(0.01, 3.0);
@@ -302,19 +334,7 @@ TEST(OcclusionBuffer, HiddenSpheresAreHiddenForEveryRay) {
       for (int s = 0; s < 200; ++s) {
         // Points on and in the ball.
         const Vec3 p = c + rng.unit_vector() * (s % 2 ? r : r * rng.uniform());
-        const Vec3 d = (p - vb.eye) / glm::dot(p - vb.eye, vb.f);  // d·f = 1: parameter = depth.
-        const double depth = glm::dot(p - vb.eye, vb.f);
-        const double x = glm::dot(p - vb.eye, vb.right) / (depth * vb.tanx);
-        const double y = glm::dot(p - vb.eye, vb.up) / (depth * vb.tany);
-        if (!(std::fabs(x) <= 1.0 && std::fabs(y) <= 1.0 && depth >= cam.near)) continue;  // Out of view.
-        bool blocked = false;
-        for (const ObjectDesc& o : occ) {
-          double t0 = 0.0, t1 = 0.0;
-          // First inside the occluder beyond the near plane, before p.
-          if (intersect(o, vb.eye, d, &t0, &t1) && t1 >= cam.near && std::max(t0, cam.near) < depth)
-            blocked = true;
-        }
-        ASSERT_TRUE(blocked) << "hidden ball has a point in view: centre " << c.x << "," << c.y << ","
+        ASSERT_NE(hit_before(occ, vb, cam.near, p), 0) << "hidden ball has a point in view: centre " << c.x << "," << c.y << ","
                              << c.z << " r " << r << " " << describe(cam);
       }
     }
@@ -330,30 +350,15 @@ TEST(OcclusionBuffer, FinelyHiddenBoxesAreHiddenForEveryRay) {
   Rng rng(78);
   int hidden = 0, fine_only = 0, balls = 0;
   for (int trial = 0; trial < scaled(200); ++trial) {
-    Camera cam = look_down_z(rng.uniform(20.0, 150.0), rng.uniform(0.5, 2.0), rng.log_uniform(1e-3, 0.5));
-    cam.eye = rng.in_box(Vec3(-3), Vec3(3));
-    cam.dir = glm::normalize(Vec3(rng.uniform(-0.3, 0.3), rng.uniform(-0.8, 0.1), -1.0));
+    const Camera cam = random_camera(rng, -0.8, 0.1);
     ViewBasis vb;
     ASSERT_TRUE(make_basis(cam, &vb));
     OcclusionBuffer ob = begin(cam, rng.chance(0.5) ? 32 : 128);
     std::vector<ObjectDesc> occ;
     occ.push_back(box_between(1, Vec3(-80, cam.eye.y - rng.uniform(1.0, 3.0) - 1.0, -80),
                               Vec3(80, cam.eye.y - rng.uniform(0.5, 1.0), 1)));
-    for (int k = 1; k < 5; ++k) {
-      const Vec3 at = cam.eye + vb.f * rng.uniform(3.0, 12.0) + rng.in_box(Vec3(-4, -4, 0), Vec3(4, 4, 0));
-      if (rng.chance(0.5)) {
-        occ.push_back(sphere(k + 1, at, rng.uniform(0.5, 4.0)));
-      } else {
-        occ.push_back(box_around(k + 1, at, rng.in_box(Vec3(0.3), Vec3(4.0))));
-      }
-    }
-    for (const ObjectDesc& o : occ) {
-      if (o.shape == Shape::Sphere) {
-        ob.render_sphere(o.center, o.radius);
-      } else {
-        ob.render_box(o.center - o.half_extent, o.center + o.half_extent);
-      }
-    }
+    ob.render_box(occ.back().center - occ.back().half_extent, occ.back().center + occ.back().half_extent);
+    add_random_occluders(rng, cam, vb, 2, 4, &ob, &occ);
     for (int q = 0; q < 40; ++q) {
       const Vec3 c = cam.eye + vb.f * rng.uniform(2.0, 30.0) + rng.in_box(Vec3(-8, -10, 0), Vec3(8, 4, 0));
       const Vec3 half = q % 2 ? rng.in_box(Vec3(0.05), Vec3(1.0)) : rng.in_box(Vec3(0.2, 0.2, 2.0), Vec3(3.0, 2.0, 12.0));
@@ -382,18 +387,7 @@ TEST(OcclusionBuffer, FinelyHiddenBoxesAreHiddenForEveryRay) {
             p[a] = c[a] + (rng.chance(0.5) ? half[a] : -half[a]);
           }
         }
-        const double depth = glm::dot(p - vb.eye, vb.f);
-        if (!(depth >= cam.near)) continue;
-        const Vec3 d = (p - vb.eye) / depth;  // d·f = 1: parameter = depth.
-        const double x = glm::dot(p - vb.eye, vb.right) / (depth * vb.tanx);
-        const double y = glm::dot(p - vb.eye, vb.up) / (depth * vb.tany);
-        if (!(std::fabs(x) <= 1.0 && std::fabs(y) <= 1.0)) continue;  // Out of view.
-        bool blocked = false;
-        for (const ObjectDesc& o : occ) {
-          double t0 = 0.0, t1 = 0.0;
-          if (intersect(o, vb.eye, d, &t0, &t1) && t1 >= cam.near && std::max(t0, cam.near) < depth) blocked = true;
-        }
-        ASSERT_TRUE(blocked) << "hidden " << (ball ? "ball" : "box") << " has a point in view: centre " << c.x << ","
+        ASSERT_NE(hit_before(occ, vb, cam.near, p), 0) << "hidden " << (ball ? "ball" : "box") << " has a point in view: centre " << c.x << ","
                              << c.y << "," << c.z << " half " << half.x << "," << half.y << "," << half.z << " "
                              << describe(cam);
       }
