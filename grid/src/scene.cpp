@@ -354,11 +354,15 @@ void Scene::Impl::brick_remove(const VoxBox& vb) {
 
 void Scene::Impl::dyn_count_add(int level, glm::ivec3 c, int delta) {
   if (dyn_count[1].empty()) return;  // Buffer off: no cell traversal to summarize for.
+  // A cell's count is its own live entries and its children that are not
+  // empty, so only a change between empty and not climbs: adding to a cell
+  // that already holds something touches that one cell.
   for (int l = level; l < pyr.levels; ++l, c >>= detail::kCellShift) {
     std::uint32_t& n = dyn_count[static_cast<std::size_t>(l)][pyr.index(l, c)];
     const bool was = n > 0;
     n = static_cast<std::uint32_t>(static_cast<std::int64_t>(n) + delta);
-    if (was != (n > 0) && l + 1 < pyr.levels) {
+    if (was == (n > 0)) return;
+    if (l + 1 < pyr.levels) {
       const std::uint64_t bit = std::uint64_t{1} << ((c.x & 3) | (c.y & 3) << 2 | (c.z & 3) << 4);
       dyn_mask[static_cast<std::size_t>(l) + 1][pyr.index(l + 1, c >> detail::kCellShift)] ^= bit;
     }
@@ -573,9 +577,16 @@ void Scene::Impl::mark_seen(Scratch::Impl& w, double t) {
   w.seen_list.clear();
 }
 
-void Scene::Impl::make_tbv(std::uint32_t slot, double now) {
+void Scene::Impl::make_tbv(std::uint32_t slot, double now, const TbvBox* box) {
   Obj& o = objs[slot];
-  const double period = tbv_box(slot, &o.tbv_lo, &o.tbv_hi);
+  double period;
+  if (box) {
+    o.tbv_lo = box->lo;
+    o.tbv_hi = box->hi;
+    period = box->period;
+  } else {
+    period = tbv_box(slot, &o.tbv_lo, &o.tbv_hi);
+  }
   o.tbv_center = o.center;
   o.tbv_expiry = o.max_speed > 0.0 ? expiry_after(now, period) : std::numeric_limits<double>::infinity();
   o.under_tbv = true;
@@ -628,7 +639,8 @@ void Scene::Impl::renew_tbv(std::uint32_t slot, double now) {
     if (bricks_of(vb) != bricks_of(old_vb)) {
       const std::uint64_t epoch = wake_epoch;
       drop_tbv(slot);
-      make_tbv(slot, now);
+      const TbvBox box{lo, hi, period};  // Not computed twice.
+      make_tbv(slot, now, &box);
       wake_epoch = epoch;
       return;
     }

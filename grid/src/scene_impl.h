@@ -253,9 +253,10 @@ struct Scene::Impl {
   std::array<std::vector<detail::Brick>, detail::kMaxLevels> coarse_dyn;
   /// Live entries in coarse_dyn, all levels: readers skip those levels at 0.
   std::uint64_t coarse_dyn_live = 0;
-  /// With the buffer on, per level >= 1, per cell: live dynamic entries in
-  /// it and in the cells below it, and a bit per child whose count is not 0
-  /// (as static_mask).
+  /// With the buffer on, per level >= 1, per cell: its own live dynamic
+  /// entries plus its children whose count is not 0, and a bit per such
+  /// child (as static_mask). A count is not 0 exactly when something lives
+  /// in the cell or below it.
   std::array<std::vector<std::uint32_t>, detail::kMaxLevels> dyn_count;
   std::array<std::vector<std::uint64_t>, detail::kMaxLevels> dyn_mask;
   /// Per brick: the latest scene time a frame saw a voxel of it (reached it
@@ -360,7 +361,14 @@ struct Scene::Impl {
     return (e.key & 1u) ? (o.under_tbv && o.tbv_gen == e.gen)
                         : (!o.under_tbv && o.disc_gen == e.gen);
   }
-  void make_tbv(std::uint32_t slot, double now);
+  /// A TBV's box and validity period (tbv_box).
+  struct TbvBox {
+    Vec3 lo, hi;
+    double period;
+  };
+  /// Puts object `slot` under a TBV from `now`: `box` if given (computed
+  /// for it at this renewal), else tbv_box's.
+  void make_tbv(std::uint32_t slot, double now, const TbvBox* box = nullptr);
   /// Gives an expired TBV a new validity period (see scene.cpp).
   void renew_tbv(std::uint32_t slot, double now);
   /// The TBV box for the object's current centre and a period starting now;

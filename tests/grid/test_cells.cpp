@@ -291,7 +291,8 @@ std::string check_masks(const Scene::Impl& s) {
             stat[static_cast<std::size_t>(l) + 1][p] = 1;
           }
           if (l >= 1 && live[static_cast<std::size_t>(l)][i] > 0) dbits[p] |= bit;
-          if (l >= 1) live[static_cast<std::size_t>(l) + 1][p] += live[static_cast<std::size_t>(l)][i];
+          // A count is the cell's own live entries plus its non-empty children.
+          if (l >= 1 && live[static_cast<std::size_t>(l)][i] > 0) ++live[static_cast<std::size_t>(l) + 1][p];
         }
     for (std::size_t p = 0; p < s.pyr.cells(l + 1); ++p) {
       const std::string at = "level " + std::to_string(l + 1) + " cell " + std::to_string(p);
