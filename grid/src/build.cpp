@@ -454,8 +454,6 @@ void build_static_masks(Scene::Impl& s) {
   }
 }
 
-/// The per-brick lists of the cell traversal (Scene::Impl::brick_static,
-/// brick_boxes), from the voxels' own lists and opaque owners.
 /// Which opaque boxes lie wholly inside one static object: the object's own
 /// occluder, drawn whenever the traversal reaches a brick of the box (it is
 /// stored there or above), already covers the box's image at least as near
@@ -489,6 +487,9 @@ std::vector<std::uint8_t> boxes_inside_one_object(const Scene::Impl& s) {
   return inside;
 }
 
+/// The per-brick lists of the cell traversal (Scene::Impl::brick_static,
+/// brick_boxes), from the voxels' own lists and opaque owners.
+/// Opaque boxes inside one object are left out (boxes_inside_one_object).
 void build_brick_lists(Scene::Impl& s) {
   const std::size_t bricks = s.pyr.cells(1);
   const std::vector<std::uint8_t> redundant = boxes_inside_one_object(s);

@@ -616,8 +616,9 @@ void Scene::Impl::renew_tbv(std::uint32_t slot, double now) {
   // hidden object nobody simulates): the new box has the same centre, so the
   // union of old and new is a valid TBV, and only the bricks it adds need
   // writing. A renewal at the growth cap then costs no brick at all. But a
-  // box cut short by seen space is made anew: the old one may reach into
-  // space seen since it was made, which would reveal it.
+  // box cut short by seen space replaces the old one rather than joining
+  // it: the old one may reach into space seen since it was made, which
+  // would reveal it.
   Vec3 lo, hi;
   bool cut = false;
   const double period = tbv_box(slot, &lo, &hi, &cut);
@@ -630,10 +631,11 @@ void Scene::Impl::renew_tbv(std::uint32_t slot, double now) {
   };
   const VoxBox old_vb = o.tbv_voxels;
   if (cut) {
-    // The cut box replaces the old one. Over the same bricks (an unmoved
-    // object beside seen space that has not moved: the usual case) the
-    // entries stand as they are: both traversals test the TBV's own box or
-    // voxel range, never a brick's, before revealing it.
+    // The cut box replaces the old one. Over the same bricks (the usual
+    // case for an object beside seen space that has not moved) the entries
+    // stand as they are: both traversals test the TBV's own box or voxel
+    // range, never a brick's, before revealing it, and the cells written
+    // depend on the range of bricks alone.
     const double sc = slop(std::fmax(max_abs(lo), max_abs(hi)));
     const VoxBox vb = touch_range(lo, hi, sc);
     if (bricks_of(vb) != bricks_of(old_vb)) {
