@@ -528,10 +528,7 @@ double Scene::Impl::unseen_growth(const Obj& o, const Vec3& lo, const Vec3& hi, 
         // The layer's recently seen voxels, OR-ed over its bricks.
         VoxBox l = r;
         l.lo[a] = l.hi[a] = c;
-        std::uint64_t m = 0;
-        for (int z = l.lo.z; z <= l.hi.z; ++z)
-          for (int y = l.lo.y; y <= l.hi.y; ++y)
-            for (int x = l.lo.x; x <= l.hi.x; ++x) m |= brick_seen(glm::ivec3(x, y, z));
+        const std::uint64_t m = layer_seen(l);
         if (m == 0) {
           (side ? r.hi[a] : r.lo[a]) = c;
           grew = true;
@@ -551,13 +548,26 @@ double Scene::Impl::unseen_growth(const Obj& o, const Vec3& lo, const Vec3& hi, 
   return room;
 }
 
-std::uint64_t Scene::Impl::brick_seen(const glm::ivec3& b) const {
-  const std::size_t i = pyr.index(1, b);
-  std::uint64_t m = seen_recently(i) ? seen_mask[i] : 0;
-  for (int l = 2; l < pyr.levels && m != ~std::uint64_t{0}; ++l) {
-    const glm::ivec3 c = b >> (detail::kCellShift * (l - 1));
-    if (time - cell_seen_at[static_cast<std::size_t>(l)][pyr.index(l, c)] <= options.tbv_seen_memory) m = ~std::uint64_t{0};
+std::uint64_t Scene::Impl::layer_seen(const VoxBox& range) const {
+  // A brick counts as wholly seen while a cell above it was seen (recorded
+  // whole, mark_seen): the cells above the layer are few, so they are asked
+  // once each rather than once per brick and level.
+  for (int l = 2; l < pyr.levels; ++l) {
+    const int sh = detail::kCellShift * (l - 1);
+    const glm::ivec3 lo = range.lo >> sh, hi = range.hi >> sh;
+    const std::vector<double>& at = cell_seen_at[static_cast<std::size_t>(l)];
+    for (int z = lo.z; z <= hi.z; ++z)
+      for (int y = lo.y; y <= hi.y; ++y)
+        for (int x = lo.x; x <= hi.x; ++x)
+          if (time - at[pyr.index(l, glm::ivec3(x, y, z))] <= options.tbv_seen_memory) return ~std::uint64_t{0};
   }
+  std::uint64_t m = 0;
+  for (int z = range.lo.z; z <= range.hi.z; ++z)
+    for (int y = range.lo.y; y <= range.hi.y; ++y)
+      for (int x = range.lo.x; x <= range.hi.x; ++x) {
+        const std::size_t i = pyr.index(1, glm::ivec3(x, y, z));
+        if (seen_recently(i)) m |= seen_mask[i];
+      }
   return m;
 }
 

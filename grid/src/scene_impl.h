@@ -267,7 +267,7 @@ struct Scene::Impl {
   std::vector<std::uint64_t> seen_mask;
   /// Per level >= 2, per cell: the latest scene time a frame saw the whole
   /// cell (Scratch::Impl::seen_cells); a brick inside such a cell counts as
-  /// wholly seen then (brick_seen).
+  /// wholly seen then (layer_seen).
   std::array<std::vector<double>, detail::kMaxLevels> cell_seen_at;
   double last_seen_at = -std::numeric_limits<double>::infinity();  ///< Latest of seen_at.
 
@@ -387,8 +387,9 @@ struct Scene::Impl {
   bool seen_recently(std::size_t brick) const {
     return time - seen_at[brick] <= options.tbv_seen_memory;
   }
-  /// The voxels of brick b (bricks_res coordinates) seen within the memory.
-  std::uint64_t brick_seen(const glm::ivec3& b) const;
+  /// The voxels (bit x + 4y + 16z of a brick) seen within the memory in any
+  /// brick of `range` (bricks_res coordinates), OR-ed.
+  std::uint64_t layer_seen(const detail::VoxBox& range) const;
   void reveal(std::uint32_t slot);
   /// Whether apply_queue(st, tbvs) has work. Needs `book`.
   bool queued(bool tbvs) const { return !queued_reveals.empty() || (tbvs && !unclaimed.empty()); }
