@@ -674,6 +674,8 @@ bool OcclusionBuffer::hides_world(const Vec3& lo, const Vec3& hi, bool fine) con
 }
 
 bool OcclusionBuffer::hides_world_split(const Vec3& lo, const Vec3& hi, int levels) const {
+  // Off (view_ is then another frame's, or none), or empty: nothing hidden.
+  if (!on() || written_ == 0) return false;
   // A piece wholly outside the frustum is seen by no ray of the frame.
   if (!view_.may_intersect_box(lo, hi) || hides_world(lo, hi, true)) return true;
   if (levels <= 0) return false;

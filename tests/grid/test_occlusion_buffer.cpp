@@ -89,6 +89,17 @@ TEST(OcclusionBuffer, FineTestHidesALongBoxUnderAFloorSeenAtASlant) {
   EXPECT_TRUE(ob.hides_world_split(Vec3(-3, -6, -30), Vec3(60, -3, -5), 3));
 }
 
+TEST(OcclusionBuffer, SplitTestHidesNothingWhenTheBufferIsOff) {
+  // A frame with the buffer off (or a far-eye fallback) after one with it
+  // on: the split test must not judge pieces by the earlier frame's view.
+  OcclusionBuffer ob = begin(look_down_z(), 128);
+  ASSERT_TRUE(ob.render_box(Vec3(-50, -50, -11), Vec3(50, 50, -10)));
+  EXPECT_TRUE(ob.hides_world_split(Vec3(-1, -1, -21), Vec3(1, 1, -20), 2));
+  ob.begin(detail::make_world_frustum(camera_along(Vec3(0.0), Vec3(0.0, 0.0, 1.0))), 0);
+  EXPECT_FALSE(ob.hides_world_split(Vec3(-1, -1, 20), Vec3(1, 1, 21), 2));
+  EXPECT_FALSE(ob.hides_world_split(Vec3(-1, -1, -21), Vec3(1, 1, -20), 2));
+}
+
 TEST(OcclusionBuffer, EyeOnABoxFacePlaneWritesNoRayHeadingOutThroughIt) {
   // The eye lies exactly on the plane of the (shrunk) box's low x face,
   // beside the box: L.x = lo.x + delta - eye.x is exactly 0 in the box's
