@@ -284,16 +284,17 @@ Camera random_camera(Rng& rng, double pitch_lo, double pitch_hi) {
 }
 
 /// Random occluders ahead of the camera, ids from `first_id`, each a ball
-/// or a box, rendered into `ob` and appended to `occ`.
+/// or a box, rendered into `ob` and appended to `occ`; sizes and distances
+/// times `scale`.
 void add_random_occluders(Rng& rng, const Camera& cam, const ViewBasis& vb, int first_id, int count,
-                          OcclusionBuffer* ob, std::vector<ObjectDesc>* occ) {
+                          OcclusionBuffer* ob, std::vector<ObjectDesc>* occ, double scale = 1.0) {
   for (int k = 0; k < count; ++k) {
-    const Vec3 at = cam.eye + vb.f * rng.uniform(3.0, 12.0) + rng.in_box(Vec3(-4, -4, 0), Vec3(4, 4, 0));
+    const Vec3 at = cam.eye + scale * (vb.f * rng.uniform(3.0, 12.0) + rng.in_box(Vec3(-4, -4, 0), Vec3(4, 4, 0)));
     if (rng.chance(0.5)) {
-      occ->push_back(sphere(first_id + k, at, rng.uniform(0.5, 4.0)));
+      occ->push_back(sphere(first_id + k, at, scale * rng.uniform(0.5, 4.0)));
       ob->render_sphere(occ->back().center, occ->back().radius);
     } else {
-      occ->push_back(box_around(first_id + k, at, rng.in_box(Vec3(0.3), Vec3(4.0))));
+      occ->push_back(box_around(first_id + k, at, scale * rng.in_box(Vec3(0.3), Vec3(4.0))));
       ob->render_box(occ->back().center - occ->back().half_extent, occ->back().center + occ->back().half_extent);
     }
   }
@@ -357,22 +358,29 @@ TEST(OcclusionBuffer, FinelyHiddenBoxesAreHiddenForEveryRay) {
   // Random occluders (a floor slab below the eye among them, seen at a
   // slant), random boxes long and short: whenever the fine test or the
   // split test says hidden, every sampled point of the box in view has an
-  // occluder hit before it on its ray. Balls tested fine, the same.
+  // occluder hit before it on its ray. Balls tested fine, the same. The
+  // whole set-up at scales 1, 1e-4 and 1e4, half of it 1e5 times its scale
+  // from the origin.
   Rng rng(78);
   int hidden = 0, fine_only = 0, balls = 0;
   for (int trial = 0; trial < scaled(200); ++trial) {
-    const Camera cam = random_camera(rng, -0.8, 0.1);
+    const double sc = trial % 3 == 0 ? 1.0 : trial % 3 == 1 ? 1e-4 : 1e4;
+    Camera cam = random_camera(rng, -0.8, 0.1);
+    cam.eye = sc * (cam.eye + (trial % 2 ? Vec3(1e5, -2e5, 3e5) : Vec3(0.0)));
+    cam.near *= sc;
+    cam.far *= sc;
     ViewBasis vb;
     ASSERT_TRUE(make_basis(cam, &vb));
     OcclusionBuffer ob = begin(cam, rng.chance(0.5) ? 32 : 128);
     std::vector<ObjectDesc> occ;
-    occ.push_back(box_between(1, Vec3(-80, cam.eye.y - rng.uniform(1.0, 3.0) - 1.0, -80),
-                              Vec3(80, cam.eye.y - rng.uniform(0.5, 1.0), 1)));
+    occ.push_back(box_between(1, cam.eye + sc * Vec3(-80, -rng.uniform(1.0, 3.0) - 1.0, -80),
+                              cam.eye + sc * Vec3(80, -rng.uniform(0.5, 1.0), 1)));
     ob.render_box(occ.back().center - occ.back().half_extent, occ.back().center + occ.back().half_extent);
-    add_random_occluders(rng, cam, vb, 2, 4, &ob, &occ);
+    add_random_occluders(rng, cam, vb, 2, 4, &ob, &occ, sc);
     for (int q = 0; q < 40; ++q) {
-      const Vec3 c = cam.eye + vb.f * rng.uniform(2.0, 30.0) + rng.in_box(Vec3(-8, -10, 0), Vec3(8, 4, 0));
-      const Vec3 half = q % 2 ? rng.in_box(Vec3(0.05), Vec3(1.0)) : rng.in_box(Vec3(0.2, 0.2, 2.0), Vec3(3.0, 2.0, 12.0));
+      const Vec3 c = cam.eye + sc * (vb.f * rng.uniform(2.0, 30.0) + rng.in_box(Vec3(-8, -10, 0), Vec3(8, 4, 0)));
+      const Vec3 half =
+          sc * (q % 2 ? rng.in_box(Vec3(0.05), Vec3(1.0)) : rng.in_box(Vec3(0.2, 0.2, 2.0), Vec3(3.0, 2.0, 12.0)));
       const bool ball = q % 5 == 0;
       bool says_hidden = false;
       if (ball) {
