@@ -170,6 +170,7 @@ void stats_to_proto(const FrameStats& in, v1::FrameStats* out) {
   out->set_ob_pixels_written(in.ob_pixels_written);
   out->set_cells_visited(in.cells_visited);
   out->set_cells_hidden(in.cells_hidden);
+  out->set_cells_whole(in.cells_whole);
   out->set_traverse_us(in.traverse_us);
   out->set_render_us(in.render_us);
   out->set_retest_us(in.retest_us);

@@ -219,6 +219,7 @@ FrameStats from_proto(const v1::FrameStats& stats) {
   s.ob_pixels_written = stats.ob_pixels_written();
   s.cells_visited = stats.cells_visited();
   s.cells_hidden = stats.cells_hidden();
+  s.cells_whole = stats.cells_whole();
   s.traverse_us = stats.traverse_us();
   s.render_us = stats.render_us();
   s.retest_us = stats.retest_us();

@@ -1084,6 +1084,7 @@ std::string result_to_json(std::size_t frame_index, const FrameResult& result) {
     count("ob_pixels_written", s.ob_pixels_written);
     count("cells_visited", s.cells_visited);
     count("cells_hidden", s.cells_hidden);
+    count("cells_whole", s.cells_whole);
   }
   out += "}}";
   return out;

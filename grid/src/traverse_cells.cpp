@@ -15,6 +15,16 @@
 // hidden regions are skipped whole at the coarsest level that shows them
 // hidden: the cost follows what is visible, not the grid's resolution.
 //
+// Far from the eye, where a brick covers only a few pixels of the buffer, a
+// brick's own test costs about what the tests of the one or two objects it
+// holds cost, and bricks are many (twice the grid's resolution, four times
+// the bricks on a surface and eight in a volume). There a cell of bricks is
+// taken whole: its bricks holding something are entered without a test of
+// their own unless they hold enough to make one pay (kSmallBrickLoad), and
+// its voxels are recorded seen without tests; what each brick holds is
+// tested as everywhere else. This is what keeps a finer grid's frame near
+// the coarser one's: the cells tested follow the image, not the grid.
+//
 // In a cell entered, the objects stored in it are tested one by one
 // (frustum, front neighbours, buffer) and drawn into the buffer when they
 // may be visible (collect.h); in a brick, so are the objects of its voxels,
@@ -33,10 +43,23 @@
 namespace voxvis::detail {
 namespace {
 
+/// A cell of bricks is taken whole when its bricks cover fewer pixels than
+/// this across, at the cell's least depth (16 x 16 = 256 pixels of a
+/// 128 x 72 buffer).
+constexpr double kSmallBrickPixels = 8.0;
+/// In a cell taken whole, a brick holding at least this many list entries
+/// (objects, opaque boxes, dynamic entries) is still tested first.
+constexpr std::ptrdiff_t kSmallBrickLoad = 4;
+
 class CellTraversal {
  public:
   CellTraversal(const Scene::Impl& s, Scratch::Impl& w, const WorldFrustum& wf, FrameStats& st, Collector& col)
-      : s_(s), w_(w), wf_(wf), st_(st), col_(col), eg_(s.to_grid(wf.eye)), has_dyn_(!s.bricks.empty()) {}
+      : s_(s), w_(w), wf_(wf), st_(st), col_(col), eg_(s.to_grid(wf.eye)), has_dyn_(!s.bricks.empty()) {
+    // A brick's edge, in pixels of the buffer, at unit depth.
+    const Vec3& v = s.spec.voxel_size;
+    const double edge = static_cast<double>(1 << kCellShift) * std::fmax(v.x, std::fmax(v.y, v.z));
+    brick_pixels_ = edge * std::fmax(0.5 * w.ob.width() / wf.tan_x, 0.5 * w.ob.height() / wf.tan_y);
+  }
 
   void run() { enter(s_.pyr.levels - 1, glm::ivec3(0), true); }
 
@@ -44,8 +67,21 @@ class CellTraversal {
   /// Enters cell c of level l if it meets the frustum and is not hidden;
   /// `full`: it holds something (else it is only recorded as seen).
   void enter(int l, const glm::ivec3& c, bool full);
-  void visit(int l, const glm::ivec3& c);
-  void visit_brick(const glm::ivec3& c);
+  /// Whether cell c of level l misses the frustum or is hidden (counted in
+  /// the stats); else its least depth along the view direction in *zmin.
+  bool skipped(int l, const glm::ivec3& c, bool full, double* zmin);
+  /// `zmin`: the cell's least depth along the view direction.
+  void visit(int l, const glm::ivec3& c, double zmin);
+  /// Tests and takes the objects, dynamic entries and TBVs stored in cell ci
+  /// of level l.
+  void take_contents(int l, std::size_t ci);
+  /// `layers`: record its voxels seen a layer at a time (see_layers), else whole.
+  void visit_brick(const glm::ivec3& c, bool layers);
+  /// Takes cell c of bricks (level 2, index ci) whole (see the top of this file).
+  void take_whole(const glm::ivec3& c, std::size_t ci);
+  /// A brick's list entries: the objects stored in it and in its voxels, its
+  /// opaque boxes and its live dynamic entries.
+  std::ptrdiff_t brick_load(std::size_t bi) const;
   /// The order of the 4 children along axis a of a cell whose first child
   /// along a starts at voxel `first`, children `size` voxels wide.
   void order(int a, int first, int size, int out[4]) const;
@@ -65,6 +101,7 @@ class CellTraversal {
   Collector& col_;
   const Vec3 eg_;
   const bool has_dyn_;
+  double brick_pixels_ = 0.0;  ///< A brick's edge in pixels of the buffer at depth 1.
   std::uint64_t bound_writes_ = ~std::uint64_t{0};  ///< The buffer's writes when far_bound_ was taken.
   double far_bound_ = 0.0;
 };
@@ -79,11 +116,26 @@ bool CellTraversal::beyond_buffer(double zmin) {
 }
 
 void CellTraversal::enter(int l, const glm::ivec3& c, bool full) {
+  double zmin = 0.0;
+  if (skipped(l, c, full, &zmin)) return;
+  if (!full) {
+    // Empty space in view: TBVs made after this frame keep clear of it.
+    if (l >= 2) {
+      col_.see_cell(l, c);
+    } else {
+      col_.see_brick(s_.pyr.index(1, c));
+    }
+    return;
+  }
+  visit(l, c, zmin);
+}
+
+bool CellTraversal::skipped(int l, const glm::ivec3& c, bool full, double* zmin_out) {
   const GridSpec& g = s_.spec;
   const int sh = kCellShift * l;
   const Vec3 lo = g.bounds_min + Vec3(c << sh) * g.voxel_size;
   const Vec3 hi = g.bounds_min + Vec3(glm::min((c + 1) << sh, s_.res)) * g.voxel_size;
-  if (!wf_.may_intersect_box(lo, hi)) return;
+  if (!wf_.may_intersect_box(lo, hi)) return true;
   // The box's least depth: everything beyond the whole buffer's farthest
   // bound is hidden (the early end: what is left of the frustum is covered).
   double zmin = glm::dot(wf_.f, lo - wf_.eye);
@@ -103,18 +155,10 @@ void CellTraversal::enter(int l, const glm::ivec3& c, bool full) {
     const VoxBox b = s_.pyr.span(l, c, 0);
     const glm::ivec3 n = b.hi - b.lo + 1;
     st_.ob_voxels_culled += static_cast<std::uint64_t>(n.x) * static_cast<std::uint64_t>(n.y) * static_cast<std::uint64_t>(n.z);
-    return;
+    return true;
   }
-  if (!full) {
-    // Empty space in view: TBVs made after this frame keep clear of it.
-    if (l >= 2) {
-      col_.see_cell(l, c);
-    } else {
-      col_.see_brick(s_.pyr.index(1, c));
-    }
-    return;
-  }
-  visit(l, c);
+  *zmin_out = zmin;
+  return false;
 }
 
 void CellTraversal::order(int a, int first, int size, int out[4]) const {
@@ -130,9 +174,7 @@ void CellTraversal::order(int a, int first, int size, int out[4]) const {
   }
 }
 
-void CellTraversal::visit(int l, const glm::ivec3& c) {
-  ++st_.cells_visited;
-  const std::size_t ci = s_.pyr.index(l, c);
+void CellTraversal::take_contents(int l, std::size_t ci) {
   // The static objects stored in the cell: they touch every voxel of it.
   const IdLists& lists = s_.static_lists[static_cast<std::size_t>(l)];
   if (lists.any())
@@ -152,8 +194,18 @@ void CellTraversal::visit(int l, const glm::ivec3& c) {
         }
       }
   }
+}
+
+void CellTraversal::visit(int l, const glm::ivec3& c, double zmin) {
+  ++st_.cells_visited;
+  const std::size_t ci = s_.pyr.index(l, c);
+  take_contents(l, ci);
   if (l == 1) {
-    visit_brick(c);
+    visit_brick(c, has_dyn_);
+    return;
+  }
+  if (l == 2 && zmin > 0.0 && brick_pixels_ < kSmallBrickPixels * zmin) {
+    take_whole(c, ci);
     return;
   }
   const std::uint64_t stat = s_.static_mask[static_cast<std::size_t>(l)][ci];
@@ -208,7 +260,7 @@ void CellTraversal::see_layers(const glm::ivec3& c, std::size_t bi) {
   col_.see_brick(bi, mask);
 }
 
-void CellTraversal::visit_brick(const glm::ivec3& c) {
+void CellTraversal::visit_brick(const glm::ivec3& c, bool layers) {
   const std::size_t bi = s_.pyr.index(1, c);
   // The static objects of its voxels' own lists, and the opaque boxes
   // owning its opaque voxels (Scene::Impl::brick_static, brick_boxes).
@@ -217,7 +269,51 @@ void CellTraversal::visit_brick(const glm::ivec3& c) {
     col_.render_opaque_box_at(*p);
   for (const std::uint32_t* p = s_.brick_static.begin(bi); p != s_.brick_static.end(bi); ++p) col_.add(*p);
   // After its own occluders are drawn: a wall hides the layers behind it.
-  if (has_dyn_) see_layers(c, bi);
+  if (layers) {
+    see_layers(c, bi);
+  } else if (has_dyn_) {
+    col_.see_brick(bi);
+  }
+}
+
+std::ptrdiff_t CellTraversal::brick_load(std::size_t bi) const {
+  const IdLists& own = s_.static_lists[1];
+  return (s_.brick_static.end(bi) - s_.brick_static.begin(bi)) + (s_.brick_boxes.end(bi) - s_.brick_boxes.begin(bi)) +
+         (own.any() ? own.end(bi) - own.begin(bi) : 0) + (has_dyn_ ? std::ptrdiff_t{s_.bricks[bi].live} : 0);
+}
+
+void CellTraversal::take_whole(const glm::ivec3& c, std::size_t ci) {
+  ++st_.cells_whole;
+  const std::uint64_t full = s_.static_mask[2][ci] | (has_dyn_ ? s_.dyn_mask[2][ci] : 0);
+  const glm::ivec3 first = c << kCellShift;
+  const glm::ivec3 res = s_.pyr.res[1];
+  constexpr int kBrick = 1 << kCellShift;
+  int ox[4], oy[4], oz[4];
+  order(0, first.x * kBrick, kBrick, ox);
+  order(1, first.y * kBrick, kBrick, oy);
+  order(2, first.z * kBrick, kBrick, oz);
+  for (int iz : oz) {
+    if (first.z + iz >= res.z) continue;
+    for (int iy : oy) {
+      if (first.y + iy >= res.y) continue;
+      for (int ix : ox) {
+        if (first.x + ix >= res.x) continue;
+        const glm::ivec3 b = first + glm::ivec3(ix, iy, iz);
+        const std::size_t bi = s_.pyr.index(1, b);
+        if (!(full >> (ix | iy << 2 | iz << 4) & 1u)) {
+          // Empty: recorded seen untested (more seen space only keeps TBVs
+          // out of more space).
+          if (has_dyn_) col_.see_brick(bi);
+          continue;
+        }
+        double zmin = 0.0;
+        if (brick_load(bi) >= kSmallBrickLoad && skipped(1, b, true, &zmin)) continue;
+        ++st_.cells_visited;
+        take_contents(1, bi);
+        visit_brick(b, false);
+      }
+    }
+  }
 }
 
 }  // namespace

@@ -119,6 +119,10 @@ struct FrameStats {
   /// (or beyond its farthest bound, the early end: early_exit).
   std::uint64_t cells_visited = 0;
   std::uint64_t cells_hidden = 0;
+  /// Cells of bricks far enough to be taken whole: their bricks entered
+  /// without a test of their own unless they hold much (docs/design.md,
+  /// "Cells taken whole").
+  std::uint64_t cells_whole = 0;
   double time_us = 0.0;               ///< Engine time for the frame, microseconds.
   /// Where time_us went: the traversal (its occluders' drawing included),
   /// drawing occluders into the buffer alone, and the tests beyond the grid
