@@ -1,4 +1,5 @@
-// format.cpp — the batch formats of format.h; docs/formats.md is the contract.
+// format.cpp — reading the batch formats of format.h (format_write.cpp
+// writes them); docs/formats.md is the contract.
 //
 // Parsing happens in two steps:
 //  1. nlohmann::json::sax_parse builds a DOM through our own SAX handler
@@ -32,6 +33,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "format_text.h"
+
 namespace voxvis {
 
 std::string number_text(double v) {
@@ -64,37 +67,9 @@ constexpr std::size_t kMaxDepth = 64;
 constexpr double kMaxId = 4294967295.0;
 
 // ---------------------------------------------------------------------------
-// Small text helpers.
+// Small text helpers (append_int and its kin: format_text.h).
 
-
-template <typename Int>
-void append_int(std::string& out, Int v) {
-  char buf[32];
-  const auto r = std::to_chars(buf, buf + sizeof buf, v);
-  out.append(buf, r.ptr);
-}
-
-/// JSON number text that parses back to exactly `v` (shortest round-trip
-/// form); null for non-finite values, which no voxvis format accepts.
-void append_number(std::string& out, double v) {
-  if (!std::isfinite(v)) {
-    out += "null";
-    return;
-  }
-  char buf[64];
-  const auto r = std::to_chars(buf, buf + sizeof buf, v);
-  out.append(buf, r.ptr);
-}
-
-void append_vec3(std::string& out, const Vec3& v) {
-  out += '[';
-  append_number(out, v.x);
-  out += ", ";
-  append_number(out, v.y);
-  out += ", ";
-  append_number(out, v.z);
-  out += ']';
-}
+using detail::append_int;
 
 /// A key or string value quoted for an error message: printable ASCII kept,
 /// everything else escaped, long text cut.
@@ -933,161 +908,6 @@ bool parse_frame_line(std::string_view text, std::string_view source, int line, 
 
 int scene_field_line(std::string_view text, std::string_view field) {
   return line_of_path(text, std::string(field));
-}
-
-std::string scene_to_json(const SceneDesc& scene) {
-  std::string out;
-  out.reserve(128 + scene.objects.size() * 96);
-  out += "{\n  \"format\": \"voxvis-scene/1\",\n  \"bounds\": {\"min\": ";
-  append_vec3(out, scene.bounds_min);
-  out += ", \"max\": ";
-  append_vec3(out, scene.bounds_max);
-  out += "},\n";
-  if (scene.grid) {
-    out += "  \"grid\": [";
-    append_int(out, scene.grid->x);
-    out += ", ";
-    append_int(out, scene.grid->y);
-    out += ", ";
-    append_int(out, scene.grid->z);
-    out += "],\n";
-  }
-  out += "  \"objects\": [";
-  bool first = true;
-  for (const ObjectDesc& o : scene.objects) {
-    out += first ? "\n    " : ",\n    ";
-    first = false;
-    out += "{\"id\": ";
-    append_int(out, o.id);
-    if (o.shape == Shape::Box) {
-      out += ", \"shape\": \"box\", \"min\": ";
-      append_vec3(out, o.center - o.half_extent);
-      out += ", \"max\": ";
-      append_vec3(out, o.center + o.half_extent);
-    } else {
-      out += ", \"shape\": \"sphere\", \"center\": ";
-      append_vec3(out, o.center);
-      out += ", \"radius\": ";
-      append_number(out, o.radius);
-    }
-    if (o.dynamic) {
-      out += ", \"dynamic\": true, \"max_speed\": ";
-      append_number(out, o.max_speed);
-    }
-    out += '}';
-  }
-  out += first ? "]\n}\n" : "\n  ]\n}\n";
-  return out;
-}
-
-std::string frame_to_json(const FrameInput& frame) {
-  std::string out;
-  out.reserve(256 + frame.moves.size() * 64);
-  const Camera& c = frame.camera;
-  out += "{\"t\": ";
-  append_number(out, frame.t);
-  out += ", \"eye\": ";
-  append_vec3(out, c.eye);
-  out += ", \"dir\": ";
-  append_vec3(out, c.dir);
-  out += ", \"up\": ";
-  append_vec3(out, c.up);
-  out += ", \"fov_y_deg\": ";
-  append_number(out, c.fov_y_deg);
-  out += ", \"aspect\": ";
-  append_number(out, c.aspect);
-  out += ", \"near\": ";
-  append_number(out, c.near);
-  out += ", \"far\": ";
-  append_number(out, c.far);
-  if (!frame.moves.empty()) {
-    out += ", \"moves\": [";
-    bool first = true;
-    for (const Move& m : frame.moves) {
-      if (!first) out += ", ";
-      first = false;
-      out += "{\"id\": ";
-      append_int(out, m.id);
-      out += ", \"center\": ";
-      append_vec3(out, m.center);
-      out += '}';
-    }
-    out += ']';
-  }
-  out += '}';
-  return out;
-}
-
-std::string result_to_json(std::size_t frame_index, const FrameResult& result) {
-  std::string out;
-  out.reserve(320 + (result.pvs.size() + result.wake.size()) * 8);
-  const auto ids = [&out](const char* name, const std::vector<ObjectId>& v) {
-    out += name;
-    out += '[';
-    for (std::size_t i = 0; i < v.size(); ++i) {
-      if (i > 0) out += ',';
-      append_int(out, v[i]);
-    }
-    out += ']';
-  };
-  const FrameStats& s = result.stats;
-  out += "{\"frame\":";
-  append_int(out, frame_index);
-  ids(",\"pvs\":", result.pvs);
-  ids(",\"wake\":", result.wake);
-  out += ",\"stats\":{\"time_us\":";
-  {
-    const double t = std::isfinite(s.time_us) ? s.time_us : 0.0;
-    char buf[64];
-    const auto r = std::to_chars(buf, buf + sizeof buf, t, std::chars_format::fixed, 3);
-    out.append(buf, r.ptr);
-  }
-  const auto micros = [&out](const char* name, double v) {
-    out += ",\"";
-    out += name;
-    out += "\":";
-    char buf[64];
-    const auto r = std::to_chars(buf, buf + sizeof buf, std::isfinite(v) ? v : 0.0, std::chars_format::fixed, 3);
-    out.append(buf, r.ptr);
-  };
-  micros("traverse_us", s.traverse_us);
-  micros("render_us", s.render_us);
-  micros("retest_us", s.retest_us);
-  const auto count = [&out](const char* name, std::uint64_t v) {
-    out += ",\"";
-    out += name;
-    out += "\":";
-    append_int(out, v);
-  };
-  count("voxels_visited", s.voxels_visited);
-  count("shells", s.shells);
-  count("objects_discretized", s.objects_discretized);
-  count("tbvs_created", s.tbvs_created);
-  count("tbvs_revealed", s.tbvs_revealed);
-  count("tbvs_expired", s.tbvs_expired);
-  count("tbvs_active", s.tbvs_active);
-  count("speed_violations", s.speed_violations);
-  count("outside_tested", s.outside_tested);
-  count("pvs_size", s.pvs_size);
-  out += ",\"early_exit\":";
-  out += s.early_exit ? "true" : "false";
-  out += ",\"frustum_fallback\":";
-  out += s.frustum_fallback ? "true" : "false";
-  count("front_voxels_culled", s.front_voxels_culled);
-  count("front_objects_culled", s.front_objects_culled);
-  if (s.ob_width > 0) {
-    // Only with the occlusion buffer on (docs/formats.md).
-    count("ob_width", s.ob_width);
-    count("ob_voxels_culled", s.ob_voxels_culled);
-    count("ob_objects_culled", s.ob_objects_culled);
-    count("ob_occluders", s.ob_occluders);
-    count("ob_pixels_written", s.ob_pixels_written);
-    count("cells_visited", s.cells_visited);
-    count("cells_hidden", s.cells_hidden);
-    count("cells_whole", s.cells_whole);
-  }
-  out += "}}";
-  return out;
 }
 
 }  // namespace voxvis
