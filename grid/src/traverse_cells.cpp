@@ -77,6 +77,14 @@ class CellTraversal {
   void take_contents(int l, std::size_t ci);
   /// `layers`: record its voxels seen a layer at a time (see_layers), else whole.
   void visit_brick(const glm::ivec3& c, bool layers);
+  /// The children of cell c of level l that hold something (bit x + 4y + 16z).
+  std::uint64_t held_mask(int l, std::size_t ci) const {
+    return s_.static_mask[static_cast<std::size_t>(l)][ci] | (has_dyn_ ? s_.dyn_mask[static_cast<std::size_t>(l)][ci] : 0);
+  }
+  /// Calls fn(child, bit) for the children of cell c of level l within the
+  /// grid, front to back (see `order`); bit: the child's in the masks.
+  template <class Fn>
+  void for_children(int l, const glm::ivec3& c, Fn&& fn) const;
   /// Takes cell c of bricks (level 2, index ci) whole (see the top of this file).
   void take_whole(const glm::ivec3& c, std::size_t ci);
   /// A brick's list entries: the objects stored in it and in its voxels, its
@@ -208,8 +216,15 @@ void CellTraversal::visit(int l, const glm::ivec3& c, double zmin) {
     take_whole(c, ci);
     return;
   }
-  const std::uint64_t stat = s_.static_mask[static_cast<std::size_t>(l)][ci];
-  const std::uint64_t dyn = has_dyn_ ? s_.dyn_mask[static_cast<std::size_t>(l)][ci] : 0;
+  const std::uint64_t held = held_mask(l, ci);
+  for_children(l, c, [&](const glm::ivec3& child, int bit) {
+    const bool full = (held >> bit & 1u) != 0;
+    if (full || has_dyn_) enter(l - 1, child, full);
+  });
+}
+
+template <class Fn>
+void CellTraversal::for_children(int l, const glm::ivec3& c, Fn&& fn) const {
   const int size = 1 << (kCellShift * (l - 1));
   const glm::ivec3 first = c << kCellShift;
   const glm::ivec3 res = s_.pyr.res[static_cast<std::size_t>(l - 1)];
@@ -223,9 +238,7 @@ void CellTraversal::visit(int l, const glm::ivec3& c, double zmin) {
       if (first.y + iy >= res.y) continue;
       for (int ix : ox) {
         if (first.x + ix >= res.x) continue;
-        const std::uint64_t bit = std::uint64_t{1} << (ix | iy << 2 | iz << 4);
-        const bool full = ((stat | dyn) & bit) != 0;
-        if (full || has_dyn_) enter(l - 1, first + glm::ivec3(ix, iy, iz), full);
+        fn(first + glm::ivec3(ix, iy, iz), ix | iy << 2 | iz << 4);
       }
     }
   }
@@ -284,36 +297,21 @@ std::ptrdiff_t CellTraversal::brick_load(std::size_t bi) const {
 
 void CellTraversal::take_whole(const glm::ivec3& c, std::size_t ci) {
   ++st_.cells_whole;
-  const std::uint64_t full = s_.static_mask[2][ci] | (has_dyn_ ? s_.dyn_mask[2][ci] : 0);
-  const glm::ivec3 first = c << kCellShift;
-  const glm::ivec3 res = s_.pyr.res[1];
-  constexpr int kBrick = 1 << kCellShift;
-  int ox[4], oy[4], oz[4];
-  order(0, first.x * kBrick, kBrick, ox);
-  order(1, first.y * kBrick, kBrick, oy);
-  order(2, first.z * kBrick, kBrick, oz);
-  for (int iz : oz) {
-    if (first.z + iz >= res.z) continue;
-    for (int iy : oy) {
-      if (first.y + iy >= res.y) continue;
-      for (int ix : ox) {
-        if (first.x + ix >= res.x) continue;
-        const glm::ivec3 b = first + glm::ivec3(ix, iy, iz);
-        const std::size_t bi = s_.pyr.index(1, b);
-        if (!(full >> (ix | iy << 2 | iz << 4) & 1u)) {
-          // Empty: recorded seen untested (more seen space only keeps TBVs
-          // out of more space).
-          if (has_dyn_) col_.see_brick(bi);
-          continue;
-        }
-        double zmin = 0.0;
-        if (brick_load(bi) >= kSmallBrickLoad && skipped(1, b, true, &zmin)) continue;
-        ++st_.cells_visited;
-        take_contents(1, bi);
-        visit_brick(b, false);
-      }
+  const std::uint64_t held = held_mask(2, ci);
+  for_children(2, c, [&](const glm::ivec3& b, int bit) {
+    const std::size_t bi = s_.pyr.index(1, b);
+    if (!(held >> bit & 1u)) {
+      // Empty: recorded seen untested (more seen space only keeps TBVs out
+      // of more space).
+      if (has_dyn_) col_.see_brick(bi);
+      return;
     }
-  }
+    double zmin = 0.0;
+    if (brick_load(bi) >= kSmallBrickLoad && skipped(1, b, true, &zmin)) return;
+    ++st_.cells_visited;
+    take_contents(1, bi);
+    visit_brick(b, false);
+  });
 }
 
 }  // namespace
