@@ -28,7 +28,7 @@ struct EngineArgs {
   std::string scene;  ///< voxvis-scene/1 file.
   std::string grid;   ///< "NX,NY,NZ" overriding the scene's grid; empty: keep.
   std::optional<double> tbv_period;  ///< Seconds; empty: engine default.
-  int occlusion_buffer = 128;        ///< Occlusion buffer width, pixels; 0: off.
+  int occlusion_buffer = 160;        ///< Occlusion buffer width, pixels; 0: off.
 };
 
 /// Reads and parses the scene file and applies the options (--grid,

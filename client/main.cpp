@@ -84,7 +84,7 @@ int run(int argc, char** argv) {
       ->type_name("SECONDS");
   replay_cmd->add_option("--occlusion-buffer", replay.engine.occlusion_buffer,
                          "Width in pixels of the conservative occlusion buffer (8..4096, "
-                         "or 0: off; default 128)")
+                         "or 0: off; default 160)")
       ->type_name("PIXELS");
   replay_cmd->add_flag("-q,--quiet", replay.quiet, "No progress line and no summary on stderr");
   replay_cmd->footer(
@@ -141,7 +141,7 @@ int run(int argc, char** argv) {
       verify_cmd->add_option("--tbv-period", verify_tbv, "TBV period for the engine, as for replay")
           ->type_name("SECONDS");
   verify_cmd->add_option("--occlusion-buffer", verify.engine.occlusion_buffer,
-                         "Occlusion buffer width for the engine, as for replay (0: off; default 128)")
+                         "Occlusion buffer width for the engine, as for replay (0: off; default 160)")
       ->type_name("PIXELS");
   verify_cmd->add_flag("-q,--quiet", verify.quiet, "No progress, miss lines or summary on stderr");
   verify_cmd->footer(

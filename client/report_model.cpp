@@ -81,7 +81,7 @@ bool parse_configs(const std::string& text, const std::string& path, std::vector
 
 std::vector<ReportConfig> default_configs(const glm::ivec3& g) {
   std::vector<ReportConfig> v;
-  for (int w : {0, 64, 128, 256, 512})
+  for (int w : {0, 64, 128, 160, 256, 512})
     v.push_back(ReportConfig{w ? "buffer " + std::to_string(w) : "buffer off", std::nullopt, w, "none"});
   const glm::ivec3 half = glm::max(g / 2, glm::ivec3(1)), twice = glm::min(g * 2, glm::ivec3(4096));
   auto grid_name = [](const glm::ivec3& r) {

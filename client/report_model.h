@@ -16,7 +16,7 @@ namespace voxvis::cli {
 struct ReportConfig {
   std::string name;
   std::optional<glm::ivec3> grid;  ///< Empty: the scene's own (or automatic) grid.
-  int occlusion_buffer = 128;      ///< 0: off.
+  int occlusion_buffer = 160;      ///< 0: off.
   std::string level = "none";      ///< voxvis/refine.h's names.
 };
 
@@ -27,8 +27,9 @@ bool parse_configs(const std::string& text, const std::string& path, std::vector
                    std::string* message);
 
 /// The default sweep around the scene's grid `g`: the buffer off and at 64,
-/// 128, 256 and 512; the grid at half and twice the resolution (buffer 128);
-/// and each refinement level on the default configuration.
+/// 128, 160 (the engine's default), 256 and 512; the grid at half and twice
+/// the resolution (buffer 128); and each refinement level with the buffer
+/// at 128.
 std::vector<ReportConfig> default_configs(const glm::ivec3& g);
 
 /// A measured configuration.

@@ -90,7 +90,7 @@ int run(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--occlusion-buffer", config.scene_options.occlusion_buffer,
                  "Width in pixels of the conservative occlusion buffer of every scene served "
-                 "(8..4096, or 0: off; default 128); the same answers as `voxvis replay "
+                 "(8..4096, or 0: off; default 160); the same answers as `voxvis replay "
                  "--occlusion-buffer`")
       ->type_name("PIXELS")
       ->capture_default_str();

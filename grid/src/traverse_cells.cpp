@@ -43,10 +43,10 @@
 namespace voxvis::detail {
 namespace {
 
-/// A cell of bricks is taken whole when its bricks cover fewer pixels than
-/// this across, at the cell's least depth (16 x 16 = 256 pixels of a
-/// 128 x 72 buffer).
-constexpr double kSmallBrickPixels = 8.0;
+/// A cell of bricks is taken whole when its bricks, at the cell's least
+/// depth, are narrower than this share of the buffer's width (16 pixels of
+/// a buffer 160 wide).
+constexpr double kSmallBrickWidth = 0.1;
 /// In a cell taken whole, a brick holding at least this many list entries
 /// (objects, opaque boxes, dynamic entries) is still tested first.
 constexpr std::ptrdiff_t kSmallBrickLoad = 4;
@@ -59,6 +59,7 @@ class CellTraversal {
     const Vec3& v = s.spec.voxel_size;
     const double edge = static_cast<double>(1 << kCellShift) * std::fmax(v.x, std::fmax(v.y, v.z));
     brick_pixels_ = edge * std::fmax(0.5 * w.ob.width() / wf.tan_x, 0.5 * w.ob.height() / wf.tan_y);
+    small_pixels_ = kSmallBrickWidth * w.ob.width();
   }
 
   void run() { enter(s_.pyr.levels - 1, glm::ivec3(0), true); }
@@ -110,6 +111,7 @@ class CellTraversal {
   const Vec3 eg_;
   const bool has_dyn_;
   double brick_pixels_ = 0.0;  ///< A brick's edge in pixels of the buffer at depth 1.
+  double small_pixels_ = 0.0;  ///< Bricks narrower than this are small (kSmallBrickWidth).
   std::uint64_t bound_writes_ = ~std::uint64_t{0};  ///< The buffer's writes when far_bound_ was taken.
   double far_bound_ = 0.0;
 };
@@ -212,7 +214,7 @@ void CellTraversal::visit(int l, const glm::ivec3& c, double zmin) {
     visit_brick(c, has_dyn_);
     return;
   }
-  if (l == 2 && zmin > 0.0 && brick_pixels_ < kSmallBrickPixels * zmin) {
+  if (l == 2 && zmin > 0.0 && brick_pixels_ < small_pixels_ * zmin) {
     take_whole(c, ci);
     return;
   }

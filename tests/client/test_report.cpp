@@ -69,7 +69,7 @@ TEST(ReportModel, ConfigurationFilesAndTheirErrors) {
       "c.json", &c, &message))
       << message;
   ASSERT_EQ(c.size(), 2u);
-  EXPECT_EQ(c[0].occlusion_buffer, 128);
+  EXPECT_EQ(c[0].occlusion_buffer, 160);
   EXPECT_EQ(c[0].level, "none");
   EXPECT_FALSE(c[0].grid.has_value());
   EXPECT_EQ(*c[1].grid, glm::ivec3(10, 20, 30));
@@ -203,7 +203,7 @@ TEST_F(Report, TheRayCastersReferenceIsTheRayCasterRunByHand) {
   for (const auto& e : exact) exact_total += e.size();
   ASSERT_GT(exact_total, 0u);
   EXPECT_EQ(rep["exactly_visible_total"].get<std::uint64_t>(), exact_total);
-  const std::pair<const char*, const char*> configs[] = {{"off", "0"}, {"default", "128"}};
+  const std::pair<const char*, const char*> configs[] = {{"off", "0"}, {"default", "160"}};
   for (std::size_t i = 0; i < 2; ++i) {
     r = run({"replay", "--scene", path("s.json"), "--frames", path("f.jsonl"), "--occlusion-buffer",
              configs[i].second, "--out", path("pvs.jsonl"), "-q"});

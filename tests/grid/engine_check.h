@@ -19,7 +19,7 @@ namespace voxvis::test {
 
 /// Options with the occlusion buffer off: the object-space culling alone,
 /// for the tests whose claims are about it (the engine's default renders a
-/// buffer 128 pixels wide, which would hide what those tests look for).
+/// buffer 160 pixels wide, which would hide what those tests look for).
 inline SceneOptions buffer_off(SceneOptions options = {}) {
   options.occlusion_buffer = 0;
   return options;

@@ -143,7 +143,7 @@ TEST(ServerCli, ViewMatchesReplayWhenMovesStop) {
 // --scene, one created through the API, and one loaded again from the data
 // directory at the next start. Each answers over the socket what `voxvis
 // replay --occlusion-buffer 64` computes, which is not what the engine
-// computes without the buffer (0) nor with the default width (128).
+// computes without the buffer (0) nor with the default width (160).
 TEST(ServerCli, OcclusionBufferMatchesReplayForEveryScene) {
   const std::string examples = std::string(VOXVIS_SOURCE_DIR) + "/examples/paper";
   const std::vector<std::string> all_frames = lines_of(slurp(examples + "/frames.jsonl"));
@@ -182,12 +182,12 @@ TEST(ServerCli, OcclusionBufferMatchesReplayForEveryScene) {
     ASSERT_FALSE(on.is_discarded() || off.is_discarded() || def.is_discarded()) << i;
     ASSERT_EQ(on.at("stats").value("ob_width", 0), 64) << on_lines[i];
     ASSERT_FALSE(off.at("stats").contains("ob_width")) << off_lines[i];
-    ASSERT_EQ(def.at("stats").value("ob_width", 0), 128) << default_lines[i];
+    ASSERT_EQ(def.at("stats").value("ob_width", 0), 160) << default_lines[i];
     if (on.at("pvs") != off.at("pvs")) ++differing;
     if (on.at("pvs") != def.at("pvs")) ++differing_from_default;
   }
   ASSERT_GT(differing, 0) << "the buffer changes no PVS on these frames: the test shows nothing";
-  ASSERT_GT(differing_from_default, 0) << "64 and 128 pixels agree on every frame: the test shows nothing";
+  ASSERT_GT(differing_from_default, 0) << "64 and 160 pixels agree on every frame: the test shows nothing";
   // The wire carries the buffer's counters: the same lines to the byte
   // (time_us aside, which expect_same_output leaves out).
   const std::string& expected = with_buffer;

@@ -73,9 +73,10 @@ struct SceneOptions {
   /// Width in pixels of the conservative occlusion buffer each frame renders
   /// the objects it finds into and tests voxels, objects and TBVs against
   /// (height from the camera's aspect, square pixels); 0 turns it off.
-  /// 0 or 8..4096 (docs/design.md, "Occlusion buffer"). The default, 128,
-  /// is the knee of the measured trade-off (docs/performance.md).
-  int occlusion_buffer = 128;
+  /// 0 or 8..4096 (docs/design.md, "Occlusion buffer"). The default, 160,
+  /// is the narrowest width that keeps the bundled walkthrough's PVS within
+  /// 1.5 times the exactly visible set (docs/performance.md).
+  int occlusion_buffer = 160;
   /// Object-space occlusion also tests, for a voxel the previous and
   /// half-distance shells leave visible, shells m-2, m-4, m-8, ... behind it
   /// (docs/design.md, "Which shells"), so that shadows seen off the axes
