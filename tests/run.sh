@@ -23,6 +23,13 @@ cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DVOXVIS_SAN
   -DVOXVIS_BUILD_BENCHMARKS=OFF
 cmake --build build-asan -j "$jobs"
 # Property tests run their full count under the sanitizers too (about 2 minutes).
+# intercept_tls_get_addr=0: the leak checker's tracking of dynamic TLS (the
+# TLS of dlopen'd libraries: Mesa's EGL driver) guesses glibc's TLS layout from
+# an address's alignment, and on glibc 2.36 the guess can go wrong with the
+# heap's layout and crash its tracer at exit ("Tracer caught signal 11", the
+# process exits 1 after a clean run; google/sanitizers#1322). Leaks are still
+# checked everywhere else.
 VOXVIS_TEST_SCALE="${VOXVIS_TEST_SCALE:-1}" \
-  ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+  ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:intercept_tls_get_addr=0 \
+  UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
   ctest --test-dir build-asan --output-on-failure -j "$jobs"
