@@ -102,13 +102,13 @@ TEST(BufferScenes, CityAtStreetLevel) {
 }
 
 TEST(BufferScenes, FarCellsTakenWholeMissNothing) {
-  // Far from the eye, where a brick covers a few pixels of the buffer, a
-  // cell of bricks is taken whole: its bricks entered without a test of
-  // their own (unless they hold much), its voxels recorded seen untested.
-  // The walkthrough's kind of scene at a fine grid, its moving objects
-  // under TBVs and revealed, at two buffer widths: zero misses, and cells
-  // were taken whole (more of them in the narrower buffer, where bricks are
-  // fewer pixels).
+  // Far from the eye, where a brick is narrower than a tenth of the
+  // buffer's width, a cell of bricks is taken whole: its bricks entered
+  // without a test of their own (unless they hold much), its voxels
+  // recorded seen untested. The walkthrough's kind of scene at a fine grid,
+  // its moving objects under TBVs and revealed, at two buffer widths (the
+  // rule is in shares of the width, so both take cells whole; what the
+  // buffer hides differs): zero misses, and cells were taken whole.
   PaperSceneParams pp;
   pp.objects = 1500;
   pp.dynamic = 100;
@@ -135,8 +135,8 @@ TEST(BufferScenes, FarCellsTakenWholeMissNothing) {
       hidden_dynamic = std::max(hidden_dynamic, h.last().stats.tbvs_active);
     }
   }
+  EXPECT_GT(whole[0], 0u);
   EXPECT_GT(whole[1], 0u);
-  EXPECT_GT(whole[0], whole[1]);
   EXPECT_GT(hidden_dynamic, 0u) << "some moving objects were hidden under TBVs";
 }
 
