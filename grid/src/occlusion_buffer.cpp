@@ -170,7 +170,7 @@ bool OcclusionBuffer::polygon_edges(const Vec3* v, int n, ConvexOccluder* occ) c
   return true;
 }
 
-bool OcclusionBuffer::fill(const ConvexOccluder& occ) {
+VOXVIS_PIXEL_LOOP bool OcclusionBuffer::fill(const ConvexOccluder& occ) {
   bool any = false;
   const int np = occ.planes;
   if (np == 0) return false;
@@ -187,17 +187,28 @@ bool OcclusionBuffer::fill(const ConvexOccluder& occ) {
   constexpr int kE = ConvexOccluder::kMaxEdges;
   double la[kE], lb[kE], ra[kE], rb[kE], fc[kE], fg[kE];
   int nl = 0, nr = 0, nf = 0;
+  // An edge that is not finite: nothing is drawn. A crossing a + b Y that
+  // could leave the doubles for a row of the image (an edge all but level,
+  // gx a rounding's size beside gy) is taken as level instead, less its
+  // largest change across the image |gx| W, which only narrows the rows it
+  // passes. So every crossing below is finite, and no row needs a check.
+  constexpr double kCrossingLimit = 1e300;
+  const double row_limit = kCrossingLimit / (static_cast<double>(h_) + 1.0);
   for (int k = 0; k < occ.edges; ++k) {
     const PixelAffine& e = occ.edge[k];
+    if (!(std::fabs(e.c) <= kMaxDouble && std::fabs(e.gx) <= kMaxDouble && std::fabs(e.gy) <= kMaxDouble))
+      return false;
     const double c = e.c + sgn * 0.5 * (std::fabs(e.gx) + std::fabs(e.gy)) - margin(e, w_, h_);
-    if (e.gx > 0.0) {
-      la[nl] = -c / e.gx - 0.5, lb[nl] = -e.gy / e.gx;
+    const double a = -c / e.gx - 0.5, b = -e.gy / e.gx;
+    const bool crossing = e.gx != 0.0 && std::fabs(a) <= kCrossingLimit && std::fabs(b) <= row_limit;
+    if (crossing && e.gx > 0.0) {
+      la[nl] = a, lb[nl] = b;
       ++nl;
-    } else if (e.gx < 0.0) {
-      ra[nr] = -c / e.gx - 0.5, rb[nr] = -e.gy / e.gx;
+    } else if (crossing) {
+      ra[nr] = a, rb[nr] = b;
       ++nr;
     } else {
-      fc[nf] = c, fg[nf] = e.gy;
+      fc[nf] = c - std::fabs(e.gx) * static_cast<double>(w_), fg[nf] = e.gy;
       ++nf;
     }
   }
@@ -209,27 +220,24 @@ bool OcclusionBuffer::fill(const ConvexOccluder& occ) {
     // The row's columns lie between the farthest crossings of each side;
     // the rounding allowance x +- 1e-9 (1 + |x|) and ceil / floor are
     // monotone in x, so the bound of the farthest crossing is the farthest
-    // bound: one ceil and one floor a row, over loops without branches. A
-    // crossing that is not finite empties the row.
+    // bound: one ceil and one floor a row, over loops without branches.
     // Two edges at a time into two accumulators (the lists are padded to
     // even lengths with a copy of their first edge), so that no chain of
     // dependent maxima serializes the loop.
     double xl0 = -kInf, xl1 = -kInf, xr0 = kInf, xr1 = kInf;
-    bool finite = true;
     for (int k = 0; k < nl; k += 2) {
       const double x0 = la[k] + lb[k] * Y, x1 = la[k + 1] + lb[k + 1] * Y;
-      finite &= std::fabs(x0) <= kMaxDouble && std::fabs(x1) <= kMaxDouble;
       xl0 = x0 > xl0 ? x0 : xl0;
       xl1 = x1 > xl1 ? x1 : xl1;
     }
     for (int k = 0; k < nr; k += 2) {
       const double x0 = ra[k] + rb[k] * Y, x1 = ra[k + 1] + rb[k + 1] * Y;
-      finite &= std::fabs(x0) <= kMaxDouble && std::fabs(x1) <= kMaxDouble;
       xr0 = x0 < xr0 ? x0 : xr0;
       xr1 = x1 < xr1 ? x1 : xr1;
     }
-    for (int k = 0; k < nf; ++k) finite &= fc[k] + fg[k] * Y >= 0.0;
-    if (!finite) continue;
+    bool level = true;  // The level edges pass the whole row, or none of it.
+    for (int k = 0; k < nf; ++k) level &= fc[k] + fg[k] * Y >= 0.0;
+    if (!level) continue;
     const double xl = xl0 > xl1 ? xl0 : xl1, xr = xr0 < xr1 ? xr0 : xr1;
     double lo = occ.i0, hi = occ.i1;
     if (nl > 0) {
@@ -253,7 +261,7 @@ bool OcclusionBuffer::fill(const ConvexOccluder& occ) {
       if (saturated) continue;
     }
     double a[ConvexOccluder::kMaxPlanes], g[ConvexOccluder::kMaxPlanes];
-    for (int k = 0; k < ConvexOccluder::kMaxPlanes; ++k) {
+    for (int k = 0; k < (np == 1 ? 1 : ConvexOccluder::kMaxPlanes); ++k) {
       const PixelAffine& p = occ.plane[k < np ? k : 0];
       g[k] = p.gx;
       a[k] = p.c + p.gy * Y + 0.5 * p.gx + dsgn * 0.5 * (std::fabs(p.gx) + std::fabs(p.gy));
@@ -303,7 +311,7 @@ bool OcclusionBuffer::fill(const ConvexOccluder& occ) {
   return any;
 }
 
-float OcclusionBuffer::tile_min(std::size_t t) const {
+VOXVIS_PIXEL_LOOP float OcclusionBuffer::tile_min(std::size_t t) const {
   if (tile_dirty_[t]) {
     const int ti = static_cast<int>(t % static_cast<std::size_t>(tw_)), tj = static_cast<int>(t / static_cast<std::size_t>(tw_));
     const int i1 = std::min(w_, (ti + 1) * kTile), j1 = std::min(h_, (tj + 1) * kTile);
@@ -353,9 +361,7 @@ bool OcclusionBuffer::render_disc(const Vec3& centre, const Vec3& normal, double
   const Vec3 a = std::fabs(normal.x) < 0.6 ? Vec3(1, 0, 0) : Vec3(0, 1, 0);
   const Vec3 e1 = glm::normalize(glm::cross(normal, a));
   const Vec3 e2 = glm::cross(normal, e1);
-  // Sides: more for a larger image, where a side's sagitta
-  // rho (1 - cos(pi / n)) would otherwise cost pixels.
-  const int n = px_across < 3.0 ? 8 : px_across < 6.0 ? 12 : px_across < 24.0 ? 16 : 24;
+  const int n = disc_sides(px_across);
   const UnitCircle& circle = unit_circle(n);
   Vec3 v[24];
   double x0 = kInf, x1 = -kInf, y0 = kInf, y1 = -kInf;
@@ -375,6 +381,57 @@ bool OcclusionBuffer::render_disc(const Vec3& centre, const Vec3& normal, double
   if (!polygon_edges(v, n, &occ)) return false;
   // Reciprocal depth on the disc's plane {normal·p = den}: normal·d / den.
   occ.plane[0] = linear(normal / den);
+  occ.planes = 1;
+  occ.w_max = w_max;
+  occ.slack = slack;
+  return fill(occ);
+}
+
+int OcclusionBuffer::disc_sides(double px_across) {
+  // More for a larger image, where a side's sagitta rho (1 - cos(pi / n))
+  // would otherwise cost pixels.
+  return px_across < 3.0 ? 8 : px_across < 6.0 ? 12 : px_across < 24.0 ? 16 : 24;
+}
+
+bool OcclusionBuffer::render_facing_disc(const Vec3& centre, double rho, double w_max, double slack, double x0,
+                                         double x1, double y0, double y1) {
+  const double len = glm::length(centre);
+  const double z_near = std::max(glm::dot(f_, centre) - rho, near_);
+  const double px_across = 2.0 * rho / z_near * (0.5 * w_ / tan_x_);
+  if (!(px_across > 1.4) || !(len > 0.0) || !std::isfinite(len)) return false;
+  ConvexOccluder occ;
+  if (!rect(x0, x1, y0, y1, &occ.i0, &occ.i1, &occ.j0, &occ.j1)) return false;
+  const Vec3 normal = centre / len;
+  const Vec3 a = std::fabs(normal.x) < 0.6 ? Vec3(1, 0, 0) : Vec3(0, 1, 0);
+  const Vec3 e1 = glm::normalize(glm::cross(normal, a));
+  const Vec3 e2 = glm::cross(normal, e1);
+  const int n = disc_sides(px_across);
+  const UnitCircle& circle = unit_circle(n);
+  // Vertex k is c + p u_k, u_k = cos_k e1 + sin_k e2 (scaled to unit size,
+  // so that no product underflows). The plane through the eye and side
+  // (k, k+1) has the normal c x (c + p u_k+1) ... = p c x (u_k+1 - u_k) +
+  // p^2 u_k x u_k+1 = p (dcos A + dsin B) + p^2 sin(2 pi / n) N, with
+  // A = c x e1, B = c x e2, N = e1 x e2 the disc's normal: positive at the
+  // centre's ray (c . N > 0), so every edge is >= 0 inside. A and B are
+  // perpendicular to c, as are the sides: each normal is good to a few eps
+  // of its own length, and the edge functions, linear in it, are sums of
+  // three functions taken once.
+  const double m = max_abs(centre) + rho;
+  const Vec3 c = centre / m;
+  const double p = rho / m;
+  const double s = std::sin(2.0 * kPi / n);
+  const PixelAffine la = linear(p * glm::cross(c, e1)), lb = linear(p * glm::cross(c, e2));
+  const PixelAffine ln = linear((p * p * s) * normal);
+  for (int k = 0; k < n; ++k) {
+    const int k1 = k + 1 == n ? 0 : k + 1;
+    const double dc = circle.cos[k1] - circle.cos[k], ds = circle.sin[k1] - circle.sin[k];
+    const PixelAffine e{dc * la.c + ds * lb.c + ln.c, dc * la.gx + ds * lb.gx + ln.gx, dc * la.gy + ds * lb.gy + ln.gy};
+    // A side that defines no plane would leave the polygon unbounded there.
+    const double mag = std::fabs(e.c) + std::fabs(e.gx) + std::fabs(e.gy);
+    if (!(mag > 0.0) || !std::isfinite(mag)) return false;
+    occ.edge[occ.edges++] = e;
+  }
+  occ.plane[0] = linear(normal / len);
   occ.planes = 1;
   occ.w_max = w_max;
   occ.slack = slack;
@@ -409,12 +466,22 @@ bool OcclusionBuffer::render_sphere(const Vec3& c, double radius) {
   // pixels wide, a disc across it nearer the eye (a plane 1/sqrt(2) of the
   // radius before the centre: radius r/sqrt(2), about half the outline), so
   // that what lies just behind the ball's front is hidden too.
+  // Both discs lie in the shrunk ball: its image range bounds the pixels
+  // they may cover (the inner disc's own, when that ball is beyond the eye's
+  // plane, bounds its pixels more closely).
+  double x0, x1, y0, y1;
+  if (!sphere_range(w, rs, &x0, &x1, &y0, &y1)) return false;
   const double k = rs * rs / ww;
   const double len = std::sqrt(ww);
   const Vec3 axis = w / len;
-  bool any = render_disc(w * (1.0 - k), axis, rs * std::sqrt(1.0 - k), w_max, slack);
+  bool any = render_facing_disc(w * (1.0 - k), rs * std::sqrt(1.0 - k), w_max, slack, x0, x1, y0, y1);
   const double inner = rs * 0.70710678118654752;
-  if (rs / (zc - rs) * (0.5 * w_ / tan_x_) >= 4.0) any |= render_disc(w - inner * axis, axis, inner, w_max, slack);
+  if (rs / (zc - rs) * (0.5 * w_ / tan_x_) >= 4.0) {
+    const Vec3 ci = w - inner * axis;
+    double a0, a1, b0, b1;
+    if (sphere_range(ci, inner, &a0, &a1, &b0, &b1)) x0 = a0, x1 = a1, y0 = b0, y1 = b1;
+    any |= render_facing_disc(ci, inner, w_max, slack, x0, x1, y0, y1);
+  }
   return any;
 }
 

@@ -205,6 +205,15 @@ class OcclusionBuffer {
   /// inscribed polygon at its plane's depth; w_max and slack as in
   /// ConvexOccluder.
   bool render_disc(const Vec3& centre, const Vec3& normal, double rho, double w_max, double slack);
+  /// Renders a disc that faces the eye (centre relative to the eye, the
+  /// disc's normal along it) as render_disc does, its edges from the disc's
+  /// frame instead of its vertices (docs/design.md, "Balls"), over pixels
+  /// within the image range [x0, x1] x [y0, y1] (a ball around the disc).
+  bool render_facing_disc(const Vec3& centre, double rho, double w_max, double slack, double x0, double x1,
+                          double y0, double y1);
+  /// The number of sides of the polygon inscribed in a disc `px_across`
+  /// pixels wide.
+  static int disc_sides(double px_across);
   /// Rasterizes the occluder; whether a bound was raised.
   bool fill(const ConvexOccluder& occ);
   /// Smallest bound of tile t (written this frame), refreshed when stale.
