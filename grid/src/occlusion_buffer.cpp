@@ -199,8 +199,8 @@ VOXVIS_PIXEL_LOOP bool OcclusionBuffer::fill(const ConvexOccluder& occ) {
     if (!(std::fabs(e.c) <= kMaxDouble && std::fabs(e.gx) <= kMaxDouble && std::fabs(e.gy) <= kMaxDouble))
       return false;
     const double c = e.c + sgn * 0.5 * (std::fabs(e.gx) + std::fabs(e.gy)) - margin(e, w_, h_);
-    const double a = -c / e.gx - 0.5, b = -e.gy / e.gx;
-    const bool crossing = e.gx != 0.0 && std::fabs(a) <= kCrossingLimit && std::fabs(b) <= row_limit;
+    const double a = e.gx != 0.0 ? -c / e.gx - 0.5 : kInf, b = e.gx != 0.0 ? -e.gy / e.gx : kInf;
+    const bool crossing = std::fabs(a) <= kCrossingLimit && std::fabs(b) <= row_limit;
     if (crossing && e.gx > 0.0) {
       la[nl] = a, lb[nl] = b;
       ++nl;

@@ -207,8 +207,10 @@ class OcclusionBuffer {
   bool render_disc(const Vec3& centre, const Vec3& normal, double rho, double w_max, double slack);
   /// Renders a disc that faces the eye (centre relative to the eye, the
   /// disc's normal along it) as render_disc does, its edges from the disc's
-  /// frame instead of its vertices (docs/design.md, "Balls"), over pixels
-  /// within the image range [x0, x1] x [y0, y1] (a ball around the disc).
+  /// frame instead of its vertices (docs/design.md, "The rasterizer"), over
+  /// pixels within the image range [x0, x1] x [y0, y1] (a ball around the
+  /// disc). The disc must lie beyond the near plane, as render_sphere's
+  /// discs do (their ball does).
   bool render_facing_disc(const Vec3& centre, double rho, double w_max, double slack, double x0, double x1,
                           double y0, double y1);
   /// The number of sides of the polygon inscribed in a disc `px_across`
