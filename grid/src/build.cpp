@@ -313,10 +313,12 @@ Status scene_cost(const Scene::Impl& s, const std::array<std::uint64_t, detail::
   // and index entry; with the buffer on, the per-brick lists (at most the
   // voxels' own entries and one box per brick); per cell of levels >= 1 its static mask (8), with
   // dynamic objects its dynamic count and mask (12) — masks and counts with
-  // the buffer only — and, from level 2, the time it was last seen whole (8).
+  // the buffer only — and, from level 2, the time it was last seen whole (8),
+  // and at level 2 the time anything in it was seen (8).
   const std::uint64_t cells = s.cell_base[static_cast<std::size_t>(s.pyr.levels)];
   cost->bytes = nvox * (1 + (buffer ? 4 : 0)) + 4 * (offsets + entries) + boxes * sizeof(VoxBox) +
-                bricks * (sizeof(detail::Brick) + 16) + coarse * (sizeof(detail::Brick) + 8) + 16 * dyn_entries +
+                bricks * (sizeof(detail::Brick) + 16) + coarse * (sizeof(detail::Brick) + 8) +
+                (bricks > 0 && s.pyr.levels > 2 ? 8 * s.pyr.cells(2) : 0) + 16 * dyn_entries +
                 (buffer ? 8 * cells + (bricks > 0 ? 12 * cells : 0) : 0) +
                 (buffer ? 4 * (per_level[0] + 2 * (s.pyr.cells(1) + 1)) + 4 * boxes : 0) +
                 s.objs.size() * (sizeof(Obj) + 48) + (1u << 16);
@@ -604,6 +606,7 @@ Status Scene::create(const SceneDesc& desc, const SceneOptions& options, std::un
     s.seen_mask.assign(s.bricks.size(), 0);
     for (int l = 2; l < s.pyr.levels; ++l)
       s.cell_seen_at[static_cast<std::size_t>(l)].assign(s.pyr.cells(l), -std::numeric_limits<double>::infinity());
+    if (s.pyr.levels > 2) s.cell_any_seen_at.assign(s.pyr.cells(2), -std::numeric_limits<double>::infinity());
     // Until a viewer has looked, every object may be visible: discretize all
     // dynamic objects now; those no viewer claims get TBVs after a frame.
     for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {

@@ -513,6 +513,9 @@ double Scene::Impl::unseen_growth(const Obj& o, const Vec3& lo, const Vec3& hi, 
   const int bs = 1 << detail::kBrickShift;
   VoxBox r{own.lo >> detail::kBrickShift, own.hi >> detail::kBrickShift};
   const VoxBox t{want.lo >> detail::kBrickShift, want.hi >> detail::kBrickShift};
+  // Nothing seen anywhere it may grow (a TBV behind a wall): every round
+  // below would find its layer unseen.
+  if (unseen_range(t)) return inf;
   // Voxels of a brick (bit x + 4y + 16z) whose coordinate on axis a is k.
   auto plane = [](int a, int k) {
     static constexpr std::uint64_t kPlane0[3] = {0x1111111111111111ull, 0x000F000F000F000Full, 0xFFFFull};
@@ -548,6 +551,27 @@ double Scene::Impl::unseen_growth(const Obj& o, const Vec3& lo, const Vec3& hi, 
   return room;
 }
 
+bool Scene::Impl::unseen_range(const VoxBox& range) const {
+  if (cell_any_seen_at.empty()) return false;
+  const double memory = options.tbv_seen_memory;
+  for (int l = 3; l < pyr.levels; ++l) {
+    const int sh = detail::kCellShift * (l - 1);
+    const glm::ivec3 lo = range.lo >> sh, hi = range.hi >> sh;
+    const std::vector<double>& at = cell_seen_at[static_cast<std::size_t>(l)];
+    for (int z = lo.z; z <= hi.z; ++z)
+      for (int y = lo.y; y <= hi.y; ++y)
+        for (int x = lo.x; x <= hi.x; ++x)
+          if (!(time - at[pyr.index(l, glm::ivec3(x, y, z))] > memory)) return false;
+  }
+  // Level 2 holds its cells' own whole records and their bricks' records.
+  const glm::ivec3 lo = range.lo >> detail::kCellShift, hi = range.hi >> detail::kCellShift;
+  for (int z = lo.z; z <= hi.z; ++z)
+    for (int y = lo.y; y <= hi.y; ++y)
+      for (int x = lo.x; x <= hi.x; ++x)
+        if (!(time - cell_any_seen_at[pyr.index(2, glm::ivec3(x, y, z))] > memory)) return false;
+  return true;
+}
+
 std::uint64_t Scene::Impl::layer_seen(const VoxBox& range) const {
   // A brick counts as wholly seen while a cell above it was seen (recorded
   // whole, mark_seen): the cells above the layer are few, so they are asked
@@ -572,17 +596,31 @@ std::uint64_t Scene::Impl::layer_seen(const VoxBox& range) const {
 }
 
 void Scene::Impl::mark_seen(Scratch::Impl& w, double t) {
+  // The level-2 summary keeps the latest time (never lowered: a record of
+  // an older frame only makes unseen_range say less).
+  const auto touch2 = [&](std::size_t cell2) {
+    double& at = cell_any_seen_at[cell2];
+    if (!(at >= t)) at = t;
+  };
   for (const auto& [level, cell] : w.seen_cells) {
     cell_seen_at[level][cell] = t;
+    if (level == 2 && !cell_any_seen_at.empty()) touch2(cell);
     last_seen_at = t;
   }
   w.seen_cells.clear();
+  const glm::ivec3 rb = pyr.res[1];
   for (std::uint32_t b : w.seen_list) {
     // A brick not seen within the memory forgets its old voxels.
     seen_mask[b] = seen_recently(b) ? seen_mask[b] | w.seen_vox[b] : w.seen_vox[b];
     seen_at[b] = t;
     w.seen_vox[b] = 0;
     last_seen_at = t;
+    if (!cell_any_seen_at.empty()) {
+      const glm::ivec3 c(static_cast<int>(b % static_cast<std::uint32_t>(rb.x)),
+                         static_cast<int>(b / static_cast<std::uint32_t>(rb.x) % static_cast<std::uint32_t>(rb.y)),
+                         static_cast<int>(b / (static_cast<std::uint32_t>(rb.x) * static_cast<std::uint32_t>(rb.y))));
+      touch2(pyr.index(2, c >> detail::kCellShift));
+    }
   }
   w.seen_list.clear();
 }

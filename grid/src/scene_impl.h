@@ -269,6 +269,11 @@ struct Scene::Impl {
   /// cell (Scratch::Impl::seen_cells); a brick inside such a cell counts as
   /// wholly seen then (layer_seen).
   std::array<std::vector<double>, detail::kMaxLevels> cell_seen_at;
+  /// Per level-2 cell (4 x 4 x 4 bricks): the latest scene time anything in
+  /// it was recorded seen, a brick of it or the cell whole (mark_seen), so
+  /// that a TBV deep in space nobody saw asks a few cells, not every brick
+  /// layer it grows through (unseen_range). Empty below three levels.
+  std::vector<double> cell_any_seen_at;
   double last_seen_at = -std::numeric_limits<double>::infinity();  ///< Latest of seen_at.
 
   // Beyond the grid.
@@ -390,6 +395,10 @@ struct Scene::Impl {
   /// The voxels (bit x + 4y + 16z of a brick) seen within the memory in any
   /// brick of `range` (bricks_res coordinates), OR-ed.
   std::uint64_t layer_seen(const detail::VoxBox& range) const;
+  /// True when no voxel of the bricks `range` (bricks_res coordinates) was
+  /// seen within the memory: the cells above them say so (false when they
+  /// cannot tell).
+  bool unseen_range(const detail::VoxBox& range) const;
   void reveal(std::uint32_t slot);
   /// Whether apply_queue(st, tbvs) has work. Needs `book`.
   bool queued(bool tbvs) const { return !queued_reveals.empty() || (tbvs && !unclaimed.empty()); }
