@@ -551,40 +551,30 @@ double Scene::Impl::unseen_growth(const Obj& o, const Vec3& lo, const Vec3& hi, 
   return room;
 }
 
-bool Scene::Impl::unseen_range(const VoxBox& range) const {
-  if (cell_any_seen_at.empty()) return false;
-  const double memory = options.tbv_seen_memory;
-  for (int l = 3; l < pyr.levels; ++l) {
-    const int sh = detail::kCellShift * (l - 1);
-    const glm::ivec3 lo = range.lo >> sh, hi = range.hi >> sh;
-    const std::vector<double>& at = cell_seen_at[static_cast<std::size_t>(l)];
-    for (int z = lo.z; z <= hi.z; ++z)
-      for (int y = lo.y; y <= hi.y; ++y)
-        for (int x = lo.x; x <= hi.x; ++x)
-          if (!(time - at[pyr.index(l, glm::ivec3(x, y, z))] > memory)) return false;
-  }
-  // Level 2 holds its cells' own whole records and their bricks' records.
-  const glm::ivec3 lo = range.lo >> detail::kCellShift, hi = range.hi >> detail::kCellShift;
+bool Scene::Impl::recent_cell(const std::vector<double>& at, int l, const VoxBox& range) const {
+  const int sh = detail::kCellShift * (l - 1);
+  const glm::ivec3 lo = range.lo >> sh, hi = range.hi >> sh;
   for (int z = lo.z; z <= hi.z; ++z)
     for (int y = lo.y; y <= hi.y; ++y)
       for (int x = lo.x; x <= hi.x; ++x)
-        if (!(time - cell_any_seen_at[pyr.index(2, glm::ivec3(x, y, z))] > memory)) return false;
-  return true;
+        if (!(time - at[pyr.index(l, glm::ivec3(x, y, z))] > options.tbv_seen_memory)) return true;
+  return false;
+}
+
+bool Scene::Impl::unseen_range(const VoxBox& range) const {
+  if (cell_any_seen_at.empty()) return false;
+  for (int l = 3; l < pyr.levels; ++l)
+    if (recent_cell(cell_seen_at[static_cast<std::size_t>(l)], l, range)) return false;
+  // Level 2 holds its cells' own whole records and their bricks' records.
+  return !recent_cell(cell_any_seen_at, 2, range);
 }
 
 std::uint64_t Scene::Impl::layer_seen(const VoxBox& range) const {
   // A brick counts as wholly seen while a cell above it was seen (recorded
   // whole, mark_seen): the cells above the layer are few, so they are asked
   // once each rather than once per brick and level.
-  for (int l = 2; l < pyr.levels; ++l) {
-    const int sh = detail::kCellShift * (l - 1);
-    const glm::ivec3 lo = range.lo >> sh, hi = range.hi >> sh;
-    const std::vector<double>& at = cell_seen_at[static_cast<std::size_t>(l)];
-    for (int z = lo.z; z <= hi.z; ++z)
-      for (int y = lo.y; y <= hi.y; ++y)
-        for (int x = lo.x; x <= hi.x; ++x)
-          if (time - at[pyr.index(l, glm::ivec3(x, y, z))] <= options.tbv_seen_memory) return ~std::uint64_t{0};
-  }
+  for (int l = 2; l < pyr.levels; ++l)
+    if (recent_cell(cell_seen_at[static_cast<std::size_t>(l)], l, range)) return ~std::uint64_t{0};
   std::uint64_t m = 0;
   for (int z = range.lo.z; z <= range.hi.z; ++z)
     for (int y = range.lo.y; y <= range.hi.y; ++y)

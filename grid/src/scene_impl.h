@@ -399,6 +399,9 @@ struct Scene::Impl {
   /// seen within the memory: the cells above them say so (false when they
   /// cannot tell).
   bool unseen_range(const detail::VoxBox& range) const;
+  /// Whether a cell of level l (times `at`, one per cell) above the bricks
+  /// `range` was seen within the memory.
+  bool recent_cell(const std::vector<double>& at, int l, const detail::VoxBox& range) const;
   void reveal(std::uint32_t slot);
   /// Whether apply_queue(st, tbvs) has work. Needs `book`.
   bool queued(bool tbvs) const { return !queued_reveals.empty() || (tbvs && !unclaimed.empty()); }
