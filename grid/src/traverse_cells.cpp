@@ -76,8 +76,9 @@ class CellTraversal {
   /// Tests and takes the objects, dynamic entries and TBVs stored in cell ci
   /// of level l.
   void take_contents(int l, std::size_t ci);
-  /// `layers`: record its voxels seen a layer at a time (see_layers), else whole.
-  void visit_brick(const glm::ivec3& c, bool layers);
+  /// `layers`: record its voxels seen a layer at a time (see_layers), else
+  /// whole, unless `record` is false (the caller records it).
+  void visit_brick(const glm::ivec3& c, bool layers, bool record = true);
   /// The children of cell c of level l that hold something (bit x + 4y + 16z).
   std::uint64_t held_mask(int l, std::size_t ci) const {
     return s_.static_mask[static_cast<std::size_t>(l)][ci] | (has_dyn_ ? s_.dyn_mask[static_cast<std::size_t>(l)][ci] : 0);
@@ -275,7 +276,7 @@ void CellTraversal::see_layers(const glm::ivec3& c, std::size_t bi) {
   col_.see_brick(bi, mask);
 }
 
-void CellTraversal::visit_brick(const glm::ivec3& c, bool layers) {
+void CellTraversal::visit_brick(const glm::ivec3& c, bool layers, bool record) {
   const std::size_t bi = s_.pyr.index(1, c);
   // The static objects of its voxels' own lists, and the opaque boxes
   // owning its opaque voxels (Scene::Impl::brick_static, brick_boxes).
@@ -286,7 +287,7 @@ void CellTraversal::visit_brick(const glm::ivec3& c, bool layers) {
   // After its own occluders are drawn: a wall hides the layers behind it.
   if (layers) {
     see_layers(c, bi);
-  } else if (has_dyn_) {
+  } else if (has_dyn_ && record) {
     col_.see_brick(bi);
   }
 }
@@ -300,19 +301,30 @@ std::ptrdiff_t CellTraversal::brick_load(std::size_t bi) const {
 void CellTraversal::take_whole(const glm::ivec3& c, std::size_t ci) {
   ++st_.cells_whole;
   const std::uint64_t held = held_mask(2, ci);
+  // Every brick of the cell is recorded seen whole but those a test hid:
+  // empty ones untested (more seen space only keeps TBVs out of more
+  // space). With none hidden, the cell is recorded once instead of its
+  // bricks one by one (the seen record reads the two alike).
+  std::uint64_t hidden = 0;
   for_children(2, c, [&](const glm::ivec3& b, int bit) {
+    if (!(held >> bit & 1u)) return;
     const std::size_t bi = s_.pyr.index(1, b);
-    if (!(held >> bit & 1u)) {
-      // Empty: recorded seen untested (more seen space only keeps TBVs out
-      // of more space).
-      if (has_dyn_) col_.see_brick(bi);
+    double zmin = 0.0;
+    if (brick_load(bi) >= kSmallBrickLoad && skipped(1, b, true, &zmin)) {
+      hidden |= std::uint64_t{1} << bit;
       return;
     }
-    double zmin = 0.0;
-    if (brick_load(bi) >= kSmallBrickLoad && skipped(1, b, true, &zmin)) return;
     ++st_.cells_visited;
     take_contents(1, bi);
-    visit_brick(b, false);
+    visit_brick(b, false, false);
+  });
+  if (!has_dyn_) return;
+  if (hidden == 0) {
+    col_.see_cell(2, c);
+    return;
+  }
+  for_children(2, c, [&](const glm::ivec3& b, int bit) {
+    if (!(hidden >> bit & 1u)) col_.see_brick(s_.pyr.index(1, b));
   });
 }
 
