@@ -23,6 +23,9 @@ constexpr double kDepthSlack = 1e-7;
 /// A double bound times this and rounded to the nearest float is no larger
 /// than the bound (the rounding is at most 2^-24 relative).
 constexpr double kFloatDown = 1.0 - 0x1p-22;
+/// Pixels across a disc's image (at its nearest depth, an overestimate)
+/// under which it cannot cover a whole pixel: not drawn.
+constexpr double kLeastDiscPixels = 1.4;
 
 /// The largest float not above d (d >= 0), for bounds that must not grow.
 float round_down(double d) {
@@ -50,6 +53,26 @@ const UnitCircle& unit_circle(int n) {
   };
   static const UnitCircle c8 = make(8), c12 = make(12), c16 = make(16), c24 = make(24);
   return n == 8 ? c8 : n == 12 ? c12 : n == 16 ? c16 : c24;
+}
+
+/// The polygon inscribed in a disc `px_across` pixels wide: an orthonormal
+/// pair in the plane of unit normal `normal`, and the sides — more for a
+/// larger image, where a side's sagitta rho (1 - cos(pi / n)) would
+/// otherwise cost pixels.
+struct DiscFrame {
+  Vec3 e1, e2;
+  int sides;
+  const UnitCircle* circle;
+};
+// Inlined: it runs for every disc drawn, and a call costs 1% of a frame.
+[[gnu::always_inline]] inline DiscFrame disc_frame(const Vec3& normal, double px_across) {
+  const Vec3 a = std::fabs(normal.x) < 0.6 ? Vec3(1, 0, 0) : Vec3(0, 1, 0);
+  DiscFrame d;
+  d.e1 = glm::normalize(glm::cross(normal, a));
+  d.e2 = glm::cross(normal, d.e1);
+  d.sides = px_across < 3.0 ? 8 : px_across < 6.0 ? 12 : px_across < 24.0 ? 16 : 24;
+  d.circle = &unit_circle(d.sides);
+  return d;
 }
 
 /// The smallest float not below d (d >= 0).
@@ -351,18 +374,13 @@ bool OcclusionBuffer::sphere_range(const Vec3& w, double radius, double* x0, dou
 }
 
 bool OcclusionBuffer::render_disc(const Vec3& centre, const Vec3& normal, double rho, double w_max, double slack) {
-  // Pixels across the disc's image (at its nearest depth, an overestimate):
-  // under about one and a half, it cannot cover a whole pixel.
   const double den = glm::dot(normal, centre);
-  const double z_near = std::fmax(glm::dot(f_, centre) - rho, near_);
-  const double px_across = 2.0 * rho / z_near * (0.5 * w_ / tan_x_);
-  if (!(px_across > 1.4) || !(den > 0.0)) return false;
-  // An orthonormal pair in the disc's plane.
-  const Vec3 a = std::fabs(normal.x) < 0.6 ? Vec3(1, 0, 0) : Vec3(0, 1, 0);
-  const Vec3 e1 = glm::normalize(glm::cross(normal, a));
-  const Vec3 e2 = glm::cross(normal, e1);
-  const int n = disc_sides(px_across);
-  const UnitCircle& circle = unit_circle(n);
+  const double px_across = disc_pixels(centre, rho);
+  if (!(px_across > kLeastDiscPixels) || !(den > 0.0)) return false;
+  const DiscFrame d = disc_frame(normal, px_across);
+  const Vec3 e1 = d.e1, e2 = d.e2;
+  const int n = d.sides;
+  const UnitCircle& circle = *d.circle;
   Vec3 v[24];
   double x0 = kInf, x1 = -kInf, y0 = kInf, y1 = -kInf;
   for (int k = 0; k < n; ++k) {
@@ -379,34 +397,35 @@ bool OcclusionBuffer::render_disc(const Vec3& centre, const Vec3& normal, double
   if (!std::isfinite(x0 + x1 + y0 + y1)) return false;
   if (!rect(x0, x1, y0, y1, &occ.i0, &occ.i1, &occ.j0, &occ.j1)) return false;
   if (!polygon_edges(v, n, &occ)) return false;
-  // Reciprocal depth on the disc's plane {normal·p = den}: normal·d / den.
-  occ.plane[0] = linear(normal / den);
-  occ.planes = 1;
-  occ.w_max = w_max;
-  occ.slack = slack;
-  return fill(occ);
+  return fill_disc(&occ, normal / den, w_max, slack);
 }
 
-int OcclusionBuffer::disc_sides(double px_across) {
-  // More for a larger image, where a side's sagitta rho (1 - cos(pi / n))
-  // would otherwise cost pixels.
-  return px_across < 3.0 ? 8 : px_across < 6.0 ? 12 : px_across < 24.0 ? 16 : 24;
+double OcclusionBuffer::disc_pixels(const Vec3& centre, double rho) const {
+  const double z_near = std::max(glm::dot(f_, centre) - rho, near_);
+  return 2.0 * rho / z_near * (0.5 * w_ / tan_x_);
+}
+
+bool OcclusionBuffer::fill_disc(ConvexOccluder* occ, const Vec3& plane, double w_max, double slack) {
+  // Reciprocal depth on the disc's plane {n·p = den}: (n / den)·d.
+  occ->plane[0] = linear(plane);
+  occ->planes = 1;
+  occ->w_max = w_max;
+  occ->slack = slack;
+  return fill(*occ);
 }
 
 bool OcclusionBuffer::render_facing_disc(const Vec3& centre, double rho, double w_max, double slack, double x0,
                                          double x1, double y0, double y1) {
   const double len = glm::length(centre);
-  const double z_near = std::max(glm::dot(f_, centre) - rho, near_);
-  const double px_across = 2.0 * rho / z_near * (0.5 * w_ / tan_x_);
-  if (!(px_across > 1.4) || !(len > 0.0) || !std::isfinite(len)) return false;
+  const double px_across = disc_pixels(centre, rho);
+  if (!(px_across > kLeastDiscPixels) || !(len > 0.0) || !std::isfinite(len)) return false;
   ConvexOccluder occ;
   if (!rect(x0, x1, y0, y1, &occ.i0, &occ.i1, &occ.j0, &occ.j1)) return false;
   const Vec3 normal = centre / len;
-  const Vec3 a = std::fabs(normal.x) < 0.6 ? Vec3(1, 0, 0) : Vec3(0, 1, 0);
-  const Vec3 e1 = glm::normalize(glm::cross(normal, a));
-  const Vec3 e2 = glm::cross(normal, e1);
-  const int n = disc_sides(px_across);
-  const UnitCircle& circle = unit_circle(n);
+  const DiscFrame d = disc_frame(normal, px_across);
+  const Vec3 e1 = d.e1, e2 = d.e2;
+  const int n = d.sides;
+  const UnitCircle& circle = *d.circle;
   // Vertex k is c + p u_k, u_k = cos_k e1 + sin_k e2 (scaled to unit size,
   // so that no product underflows). The plane through the eye and side
   // (k, k+1) has the normal c x (c + p u_k+1) ... = p c x (u_k+1 - u_k) +
@@ -431,11 +450,7 @@ bool OcclusionBuffer::render_facing_disc(const Vec3& centre, double rho, double 
     if (!(mag > 0.0) || !std::isfinite(mag)) return false;
     occ.edge[occ.edges++] = e;
   }
-  occ.plane[0] = linear(normal / len);
-  occ.planes = 1;
-  occ.w_max = w_max;
-  occ.slack = slack;
-  return fill(occ);
+  return fill_disc(&occ, normal / len, w_max, slack);
 }
 
 bool OcclusionBuffer::render_sphere(const Vec3& c, double radius) {

@@ -213,9 +213,12 @@ class OcclusionBuffer {
   /// discs do (their ball does).
   bool render_facing_disc(const Vec3& centre, double rho, double w_max, double slack, double x0, double x1,
                           double y0, double y1);
-  /// The number of sides of the polygon inscribed in a disc `px_across`
-  /// pixels wide.
-  static int disc_sides(double px_across);
+  /// Pixels across the image of a disc (centre relative to the eye,
+  /// radius), at its nearest depth: an overestimate.
+  double disc_pixels(const Vec3& centre, double rho) const;
+  /// Fills a disc's polygon (its edges set) at the depth of the plane
+  /// {n·p = den} given as n / den; w_max and slack as in ConvexOccluder.
+  bool fill_disc(ConvexOccluder* occ, const Vec3& plane, double w_max, double slack);
   /// Rasterizes the occluder; whether a bound was raised.
   bool fill(const ConvexOccluder& occ);
   /// Smallest bound of tile t (written this frame), refreshed when stale.
