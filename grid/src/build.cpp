@@ -322,7 +322,9 @@ Status scene_cost(const Scene::Impl& s, const std::array<std::uint64_t, detail::
                 (buffer ? 8 * cells + (bricks > 0 ? 12 * cells : 0) : 0) +
                 (buffer ? 4 * (per_level[0] + 2 * (s.pyr.cells(1) + 1)) + 4 * boxes : 0) +
                 s.objs.size() * (sizeof(Obj) + 48) + (1u << 16);
-  cost->scratch_bytes = nvox + 8 * s.objs.size() + 4 * boxes + 8 * bricks + 4 * s.cell_base[static_cast<std::size_t>(s.pyr.levels)];
+  // A worker's scratch: the voxel traversal's stamps (a byte a voxel, the
+  // buffer off), per object, box, brick and cell a mark.
+  cost->scratch_bytes = (buffer ? 0 : nvox) + 8 * s.objs.size() + 4 * boxes + 8 * bricks + 4 * s.cell_base[static_cast<std::size_t>(s.pyr.levels)];
   cost->work = meter.steps() + nvox * 2;
   if (meter.max_bytes() > 0 && cost->bytes > meter.max_bytes()) {
     const std::string grid = std::to_string(s.res.x) + "x" + std::to_string(s.res.y) + "x" + std::to_string(s.res.z);

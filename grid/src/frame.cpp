@@ -119,6 +119,7 @@ void traverse(FrameRun& f) {
     if (f.w.ob.on()) {
       detail::traverse_cells(s, f.w, f.wf, f.st, g);
     } else {
+      f.w.begin_voxels(static_cast<std::size_t>(s.spec.voxel_count()));
       detail::traverse_voxels(s, f.w, f.wf, f.st, g);
     }
     return;
@@ -299,8 +300,7 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
     ~InFlight() { n.fetch_sub(1, std::memory_order_relaxed); }
   } in_flight{s.frames_in_flight};
   Scratch::Impl& w = scratch.impl();
-  w.begin(static_cast<std::size_t>(s.spec.voxel_count()), s.objs.size(), s.opaque_boxes.size(), s.bricks.size(),
-          s.cell_base[static_cast<std::size_t>(s.pyr.levels)]);
+  w.begin(s.objs.size(), s.opaque_boxes.size(), s.bricks.size(), s.cell_base[static_cast<std::size_t>(s.pyr.levels)]);
   FrameRun f{s, w, detail::make_world_frustum(camera), viewer, t, FrameStats{}, {}};
   std::uint64_t tick_split[2] = {0, 0};  // Traversal; beyond the grid and retest.
   bool expired = false;

@@ -43,8 +43,7 @@ double expiry_after(double now, double period) {
 Scratch::Scratch() : impl_(std::make_unique<Impl>()) {}
 Scratch::~Scratch() = default;
 
-void Scratch::Impl::begin(std::size_t voxels, std::size_t objects, std::size_t boxes, std::size_t bricks,
-                          std::size_t cells) {
+void Scratch::Impl::begin(std::size_t objects, std::size_t boxes, std::size_t bricks, std::size_t cells) {
   pvs.clear();
   deferred.clear();
   // A frame that ended early (an error) may have left its seen record.
@@ -52,7 +51,6 @@ void Scratch::Impl::begin(std::size_t voxels, std::size_t objects, std::size_t b
   seen_list.clear();
   seen_cells.clear();
   if (seen_vox.size() < bricks) seen_vox.resize(bricks, 0);
-  if (stamp.size() < voxels) stamp.resize(voxels, 0);
   if (obj_mark.size() < objects) obj_mark.resize(objects, 0);
   if (obj_seen.size() < objects) obj_seen.resize(objects, 0);
   if (box_seen.size() < boxes) box_seen.resize(boxes, 0);
@@ -66,12 +64,16 @@ void Scratch::Impl::begin(std::size_t voxels, std::size_t objects, std::size_t b
     std::fill(cell_seen.begin(), cell_seen.end(), 0u);
     frame = 1;
   }
+  pvs.clear();
+  reveals.clear();
+}
+
+void Scratch::Impl::begin_voxels(std::size_t voxels) {
+  if (stamp.size() < voxels) stamp.resize(voxels, 0);
   if (++stamp_tag == 64) {
     std::fill(stamp.begin(), stamp.end(), std::uint8_t{0});
     stamp_tag = 1;
   }
-  pvs.clear();
-  reveals.clear();
 }
 
 // ---------------------------------------------------------------------------

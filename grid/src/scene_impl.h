@@ -189,10 +189,12 @@ struct Scratch::Impl {
   /// its static objects were collected.
   std::vector<std::uint32_t> cell_seen;
 
-  /// Starts a frame for a scene of `voxels` voxels, `objects` slots,
-  /// `boxes` opaque boxes, `bricks` bricks and `cells` cells of levels >= 1.
-  void begin(std::size_t voxels, std::size_t objects, std::size_t boxes, std::size_t bricks,
-             std::size_t cells);
+  /// Starts a frame for a scene of `objects` slots, `boxes` opaque boxes,
+  /// `bricks` bricks and `cells` cells of levels >= 1.
+  void begin(std::size_t objects, std::size_t boxes, std::size_t bricks, std::size_t cells);
+  /// Starts the voxel traversal's stamps for a grid of `voxels` voxels: only
+  /// frames that walk voxels (the buffer off) size, touch and clear them.
+  void begin_voxels(std::size_t voxels);
 };
 
 struct Scene::Impl {
