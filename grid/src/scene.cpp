@@ -273,6 +273,14 @@ bool Scene::Impl::union_covers(const std::uint32_t* slots, std::size_t n, int x,
   return true;
 }
 
+bool Scene::Impl::in_one_ball(const std::uint32_t* slots, std::size_t n, int x, int y, int z) const {
+  for (std::size_t i = 0; i < n; ++i) {
+    const Obj& o = objs[slots[i]];
+    if (o.shape == Shape::Sphere && !o.dynamic && contains_voxel(o, o.center, x, y, z)) return true;
+  }
+  return false;
+}
+
 void Scene::Impl::coarse_static(int x, int y, int z, std::uint32_t* out, std::size_t* n, std::size_t cap) const {
   for (int l = 1; l < pyr.levels && *n < cap; ++l) {
     const detail::IdLists& lists = static_lists[static_cast<std::size_t>(l)];

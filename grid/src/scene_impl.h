@@ -223,6 +223,9 @@ struct Scene::Impl {
 
   // Static layer.
   static constexpr std::uint8_t kStaticOpaque = 1, kStaticIds = 2, kDynOpaque = 4, kCoarseIds = 8;
+  /// A static opaque voxel wholly inside one static ball (read when the
+  /// opaque boxes are chosen: build.cpp, redundant_boxes).
+  static constexpr std::uint8_t kInOneBall = 16;
   std::vector<std::uint8_t> vflags;
   detail::Pyramid pyr;
   /// Per level, the static objects stored there (level 0: voxels).
@@ -339,6 +342,8 @@ struct Scene::Impl {
   /// together cover voxel (x, y, z): one sphere contains it, or the union of
   /// their inner boxes covers the closed unit cube (docs/design.md, "Opacity").
   bool union_covers(const std::uint32_t* slots, std::size_t n, int x, int y, int z) const;
+  /// Whether one of the static balls among `slots` holds voxel (x, y, z) whole.
+  bool in_one_ball(const std::uint32_t* slots, std::size_t n, int x, int y, int z) const;
   /// union_covers over every static object touching the voxel and every
   /// discretized dynamic object of its cells (kCoverCandidates at most).
   bool covered_now(int x, int y, int z) const;
