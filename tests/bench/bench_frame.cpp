@@ -46,6 +46,13 @@
 //     exact_mean and vfc_mean are computed once, outside the timed loop, on
 //     every 20th frame of the path (they depend on neither grid nor buffer).
 //
+//   walkthrough/resolution/grid:200x120x200:100x60x100
+//     The walkthrough on both grids at the default options, each frame
+//     answered on one then the other (BM_Resolution): ratio_of_least (the
+//     median over frames of each frame's least time, fine over coarse),
+//     ratio_median (per-step ratios) and ratio_of_medians; the issue's
+//     resolution target reads ratio_of_least.
+//
 //   hidden_dynamic/n:N
 //     A fixed camera looks at 200 static spheres in front of a wall that
 //     fills its view; N = 1,000 / 10,000 / 100,000 small dynamic spheres sit
@@ -340,6 +347,76 @@ void BM_Path(benchmark::State& state, Path which, glm::ivec3 grid, int ob) {
   state.SetItemsProcessed(static_cast<std::int64_t>(times.size()));
 }
 
+/// The walkthrough on two grids at once, the default options: each step
+/// applies the frame's moves to both scenes and answers it on both, in
+/// turn (which goes first alternates), so that the host's noise falls on
+/// both alike. Reports each grid's median frame time, the median over steps
+/// of the per-step ratio fine / coarse, and the ratio of the medians, over
+/// frame indices, of each index's least time (the steadiest figure on a
+/// shared machine). An iteration is one step; 1,794 steps are three
+/// ping-pong cycles, six visits of each frame.
+void BM_Resolution(benchmark::State& state, glm::ivec3 coarse, glm::ivec3 fine) {
+  const Recording& rec = recording(Path::Walkthrough);
+  std::unique_ptr<Scene> scenes[2];
+  for (int i = 0; i < 2; ++i) {
+    SceneDesc desc = rec.scene;
+    desc.grid = i == 0 ? coarse : fine;
+    if (const Status st = Scene::create(desc, SceneOptions{}, &scenes[i]); !st.ok) {
+      state.SkipWithError(("Scene::create: " + st.str()).c_str());
+      return;
+    }
+  }
+  Scratch scratch[2];
+  const ViewerId viewer[2] = {scenes[0]->add_viewer(), scenes[1]->add_viewer()};
+  const std::size_t n = rec.frames.size();
+  std::size_t step = 0;
+  FrameResult result;
+  double last[2] = {0.0, 0.0};
+  auto run_step = [&]() -> bool {
+    const std::size_t k = ping_pong(step, n);
+    const double t = static_cast<double>(step) * rec.dt;
+    for (int j = 0; j < 2; ++j) {
+      const int i = (j + static_cast<int>(step & 1)) & 1;
+      if (!rec.frames[k].moves.empty() && !scenes[i]->apply_moves(t, rec.frames[k].moves).ok) return false;
+      if (!scenes[i]->frame(viewer[i], rec.frames[k].camera, t, scratch[i], &result).ok) return false;
+      last[i] = result.stats.time_us;
+    }
+    ++step;
+    return true;
+  };
+  for (int i = 0; i < 10; ++i) {
+    if (!run_step()) {
+      state.SkipWithError("warm-up frame failed");
+      return;
+    }
+  }
+  std::vector<double> times[2], ratios;
+  std::vector<double> least[2] = {std::vector<double>(n, HUGE_VAL), std::vector<double>(n, HUGE_VAL)};
+  for (auto _ : state) {
+    const std::size_t k = ping_pong(step, n);
+    if (!run_step()) {
+      state.SkipWithError("frame failed");
+      break;
+    }
+    for (int i = 0; i < 2; ++i) {
+      times[i].push_back(last[i]);
+      least[i][k] = std::min(least[i][k], last[i]);
+    }
+    if (last[0] > 0.0) ratios.push_back(last[1] / last[0]);
+  }
+  for (auto& v : least) v.erase(std::remove(v.begin(), v.end(), HUGE_VAL), v.end());
+  const double m0 = percentile(times[0], 0.5), m1 = percentile(times[1], 0.5);
+  const double l0 = percentile(least[0], 0.5), l1 = percentile(least[1], 0.5);
+  state.counters["coarse_median_us"] = m0;
+  state.counters["fine_median_us"] = m1;
+  state.counters["ratio_of_medians"] = m0 > 0.0 ? m1 / m0 : 0.0;
+  state.counters["ratio_median"] = percentile(ratios, 0.5);
+  state.counters["coarse_least_us"] = l0;
+  state.counters["fine_least_us"] = l1;
+  state.counters["ratio_of_least"] = l0 > 0.0 ? l1 / l0 : 0.0;
+  state.SetItemsProcessed(static_cast<std::int64_t>(times[0].size()));
+}
+
 /// The fixed-PVS scene of hidden_dynamic: bounds 100 x 60 x 100 on a
 /// 100x60x100 grid (unit voxels); a wall filling z in [45, 50] (and reaching
 /// far beyond the bounds); 200 static spheres at z in [55, 85]; n dynamic
@@ -580,6 +657,11 @@ void register_all() {
           ->Iterations(598)
           ->Unit(benchmark::kMicrosecond);
     }
+  // The resolution target: the finer grid against the coarser, interleaved.
+  benchmark::RegisterBenchmark("walkthrough/resolution/grid:200x120x200:100x60x100", BM_Resolution,
+                               glm::ivec3(100, 60, 100), glm::ivec3(200, 120, 200))
+      ->Iterations(1794)
+      ->Unit(benchmark::kMicrosecond);
   // One scene, several viewers, each frame on its own thread; the buffer
   // off, and at the default width.
   for (int ob : {0, 128})

@@ -8,7 +8,9 @@
 #   BUILD_DIR  build directory (default: <repo>/build)
 #   REPS       --benchmark_repetitions (default 5)
 # Afterwards it prints, when both ran, the hidden_dynamic ratio
-# median_us(n:100000) / median_us(n:1000) (the goal is <= 1.20).
+# median_us(n:100000) / median_us(n:1000) (the goal is <= 1.20), and, when
+# it ran, the walkthrough's resolution ratio 200x120x200 / 100x60x100
+# (walkthrough/resolution: ratio_of_least; the goal is <= 1.5).
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
@@ -38,6 +40,7 @@ if command -v python3 >/dev/null 2>&1; then
 import json, re, sys
 data = json.load(open(sys.argv[1]))
 med = {}
+res = {}
 for b in data.get("benchmarks", []):
     # With repetitions, use the median aggregate; without, the single run.
     if b.get("run_type") == "aggregate" and b.get("aggregate_name") != "median":
@@ -45,11 +48,18 @@ for b in data.get("benchmarks", []):
     name = re.sub(r"/iterations:\d+", "", b.get("run_name", b["name"]))
     if "median_us" in b:
         med[name] = b["median_us"]
+    if "ratio_of_least" in b:
+        res[name] = b
 for sfx in ("", "/ob:256"):
     lo, hi = med.get("hidden_dynamic/n:1000" + sfx), med.get("hidden_dynamic/n:100000" + sfx)
     if lo and hi:
         ratio = hi / lo
         verdict = "OK" if ratio <= 1.2 else "ABOVE the 1.20 goal"
         print(f"hidden_dynamic{sfx}: median_us n:1000 = {lo:.1f}, n:100000 = {hi:.1f}, ratio {ratio:.2f} ({verdict})")
+for name, b in res.items():
+    r = b["ratio_of_least"]
+    verdict = "OK" if r <= 1.5 else "ABOVE the 1.5 goal"
+    print(f"{name}: least-time medians {b['coarse_least_us']:.0f} / {b['fine_least_us']:.0f} us, "
+          f"ratio {r:.2f} ({verdict}); per-step ratio {b['ratio_median']:.2f}, of medians {b['ratio_of_medians']:.2f}")
 EOF
 fi
