@@ -134,6 +134,20 @@ struct ViewArgs {
 
 int run_view(const ViewArgs& args);
 
+struct TickArgs {
+  NetArgs net;
+  std::string scene;   ///< Scene id on the server.
+  std::string frames;  ///< Frames file, JSON Lines.
+  /// One viewer: the output file (empty: stdout); several: a directory for
+  /// viewer-<k>.jsonl.
+  std::string out;
+  int viewers = 1;     ///< Viewers a tick, each walking the recording from its own start.
+  bool delta = false;  ///< Ask for PVS_DELTA answers (reassembled: same output).
+  bool quiet = false;
+};
+
+int run_tick(const TickArgs& args);
+
 struct SimulateArgs {
   NetArgs net;
   std::string scene;

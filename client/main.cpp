@@ -50,6 +50,7 @@ int run(int argc, char** argv) {
       "  voxvis verify --scene scene.json --frames frames.jsonl --pvs pvs.jsonl --resolution 640x360\n"
       "  voxvis load --server 127.0.0.1:50051 --scene scene.json --id paper\n"
       "  voxvis view --scene paper --frames frames.jsonl --out pvs.jsonl\n"
+      "  voxvis tick --scene paper --frames frames.jsonl --viewers 24 --out pvs-dir\n"
       "  voxvis loadgen --scene paper --viewers 500 --rate 60 --duration 30\n"
       "\n"
       "Exit status: 0 success, 2 invalid input or arguments (the message names\n"
@@ -280,6 +281,31 @@ int run(int argc, char** argv) {
       "lines `voxvis replay` writes, {\"frame\", \"pvs\", \"wake\", \"stats\"}, computed by\n"
       "the server. Moves need a simulation token.");
 
+  // voxvis tick
+  voxvis::cli::TickArgs tick;
+  CLI::App* tick_cmd = app.add_subcommand(
+      "tick", "Replay a frames file against a scene on the server as ticks: every viewer in one message.");
+  add_net_options(tick_cmd, &tick.net);
+  tick_cmd->add_option("--scene", tick.scene, "Scene id on the server")->required()->type_name("ID");
+  tick_cmd->add_option("--frames", tick.frames, "Frames file (JSON Lines: one camera and optional moves per line)")
+      ->required()
+      ->type_name("FILE");
+  tick_cmd->add_option("--viewers", tick.viewers,
+                       "Viewers a tick, each walking the recording from its own start (line v*n/N)")
+      ->check(CLI::Range(1, 1024))
+      ->type_name("N");
+  tick_cmd->add_option("--out", tick.out,
+                       "One viewer: the output file (default stdout); several: a directory for "
+                       "viewer-<k>.jsonl. Written whole or not at all")
+      ->type_name("PATH");
+  tick_cmd->add_flag("--delta", tick.delta, "Ask for PVS deltas and reassemble them (same output)");
+  tick_cmd->add_flag("-q,--quiet", tick.quiet, "No progress line and no summary on stderr");
+  tick_cmd->footer(
+      "Lock-step, one Tick stream: tick k carries line k's moves and time and each viewer's\n"
+      "camera. Output: per viewer, the lines `voxvis replay` writes, {\"frame\", \"pvs\",\n"
+      "\"wake\", \"stats\"}, frame = the tick; viewer 0's equal replay's. Moves need a\n"
+      "simulation token.");
+
   // voxvis simulate
   voxvis::cli::SimulateArgs sim;
   CLI::App* sim_cmd = app.add_subcommand(
@@ -366,6 +392,7 @@ int run(int argc, char** argv) {
   if (scenes_cmd->parsed()) return voxvis::cli::run_scenes(scenes_net);
   if (delete_cmd->parsed()) return voxvis::cli::run_delete(delete_net, delete_id);
   if (view_cmd->parsed()) return voxvis::cli::run_view(view);
+  if (tick_cmd->parsed()) return voxvis::cli::run_tick(tick);
   if (sim_cmd->parsed()) return voxvis::cli::run_simulate(sim);
   if (loadgen_cmd->parsed()) return voxvis::cli::run_loadgen(gen_load);
   return kExitError;  // Unreachable: a subcommand is required.

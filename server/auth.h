@@ -1,9 +1,10 @@
 // auth.h — bearer tokens and roles.
 //
-// Roles nest: a viewer may view (View, GetPvs, ListScenes, GetSceneStats), a
-// simulation may also move objects (Simulate), an admin may also create and
-// delete scenes. Tokens come from a file (never the command line, where any
-// user of the machine could read them in the process list):
+// Roles nest: a viewer may view (View, Tick without moves, GetPvs,
+// ListScenes, GetSceneStats), a simulation may also move objects (Simulate,
+// Tick with moves), an admin may also create and delete scenes. Tokens come
+// from a file (never the command line, where any user of the machine could
+// read them in the process list):
 //
 //   # comment
 //   admin      <token>

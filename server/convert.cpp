@@ -124,13 +124,18 @@ Status camera_from_proto(const v1::Camera& in, bool present, Camera* out) {
 }
 
 Status moves_from_proto(const v1::MoveBatch& in, std::vector<Move>* out) {
+  return moves_from_proto(in.moves(), "batch.moves", out);
+}
+
+Status moves_from_proto(const google::protobuf::RepeatedPtrField<v1::Move>& in, const std::string& path,
+                        std::vector<Move>* out) {
   out->clear();
-  out->reserve(static_cast<std::size_t>(in.moves_size()));
+  out->reserve(static_cast<std::size_t>(in.size()));
   std::unordered_set<ObjectId> seen;
-  seen.reserve(static_cast<std::size_t>(in.moves_size()));
-  for (int i = 0; i < in.moves_size(); ++i) {
-    const v1::Move& m = in.moves(i);
-    const std::string f = "batch.moves[" + std::to_string(i) + "]";
+  seen.reserve(static_cast<std::size_t>(in.size()));
+  for (int i = 0; i < in.size(); ++i) {
+    const v1::Move& m = in.Get(i);
+    const std::string f = path + "[" + std::to_string(i) + "]";
     if (!seen.insert(m.id()).second)
       return Status::Error(f + ".id", "object " + std::to_string(m.id()) + " appears twice in one batch");
     Move mv;
@@ -139,6 +144,38 @@ Status moves_from_proto(const v1::MoveBatch& in, std::vector<Move>* out) {
     out->push_back(mv);
   }
   return Status::Ok();
+}
+
+void ids_to_proto(const std::vector<ObjectId>& ids, v1::IdSet* out) {
+  out->Clear();
+  if (ids.empty()) return;
+  // Bytes of each form: a varint a gap, against one bit an id of the range.
+  std::size_t gap_bytes = 0;
+  ObjectId prev = 0;
+  for (ObjectId id : ids) {
+    const std::uint32_t gap = id - prev;
+    gap_bytes += gap < (1u << 7) ? 1 : gap < (1u << 14) ? 2 : gap < (1u << 21) ? 3 : gap < (1u << 28) ? 4 : 5;
+    prev = id;
+  }
+  const std::uint64_t span = std::uint64_t{ids.back()} - ids.front() + 1;
+  const std::uint64_t bit_bytes = (span + 7) / 8 + 5;  // The bits and the base.
+  if (bit_bytes < gap_bytes) {
+    std::string bits(static_cast<std::size_t>((span + 7) / 8), '\0');
+    for (ObjectId id : ids) {
+      const std::uint64_t k = id - ids.front();
+      bits[static_cast<std::size_t>(k / 8)] = static_cast<char>(bits[static_cast<std::size_t>(k / 8)] | (1 << (k % 8)));
+    }
+    out->set_base(ids.front());
+    out->set_bits(std::move(bits));
+    return;
+  }
+  auto* gaps = out->mutable_gaps();
+  gaps->Reserve(static_cast<int>(ids.size()));
+  prev = 0;
+  for (ObjectId id : ids) {
+    gaps->AddAlreadyReserved(id - prev);
+    prev = id;
+  }
 }
 
 void vec_to_proto(const Vec3& in, v1::Vec3* out) {

@@ -31,6 +31,12 @@ Status camera_from_proto(const v1::Camera& in, bool present, Camera* out);
 /// A batch's moves: each id at most once, centre present and finite. (Unknown
 /// and static ids are the engine's to refuse; it names them the same way.)
 Status moves_from_proto(const v1::MoveBatch& in, std::vector<Move>* out);
+/// The same for a list of moves whose path is `path` ("moves": "moves[2].id").
+Status moves_from_proto(const google::protobuf::RepeatedPtrField<v1::Move>& in, const std::string& path,
+                        std::vector<Move>* out);
+
+/// An ascending id set in the smaller of IdSet's two forms (gaps or bitset).
+void ids_to_proto(const std::vector<ObjectId>& ids, v1::IdSet* out);
 
 void stats_to_proto(const FrameStats& in, v1::FrameStats* out);
 void vec_to_proto(const Vec3& in, v1::Vec3* out);

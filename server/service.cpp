@@ -627,6 +627,31 @@ grpc::ServerUnaryReactor* Service::GetPvs(grpc::CallbackServerContext* ctx,
   return reactor;
 }
 
+grpc::Status Service::apply_batch(SceneEntry& e, double t, const std::vector<Move>& moves,
+                                  const std::string& field_prefix, MoveReport* report) {
+  // One batch may advance the clock by a bounded step; the first one on a
+  // scene adopts the backend's epoch.
+  const double step_limit = config_.max_time_step_s;
+  const double from = e.sim_time.load(std::memory_order_relaxed);
+  if (e.sim_clock_set && t - from > step_limit)
+    return invalid(Status::Error(field_prefix + "t", number_text(t) + " is " + number_text(t - from) +
+                                                       " s beyond the scene's clock (" + number_text(from) +
+                                                       "); one batch may advance it by at most " +
+                                                       number_text(step_limit) + " s"));
+  Scene& scene = *e.scene;
+  const grpc::Status g = guarded(e, "move batch", [&] {
+    Status s = scene.apply_moves(t, moves, report, Scene::Clock::Latest);
+    return s ? grpc::Status::OK : invalid(Status::Error(field_prefix + s.field, s.message));
+  });
+  if (!g.ok()) return g;
+  e.moves_applied.fetch_add(report->applied, std::memory_order_relaxed);
+  e.after_moves(report->t);
+  if (report->applied) e.positions_dirty.store(true, std::memory_order_relaxed);
+  if (e.metrics) e.metrics->moves(report->applied);
+  e.refresh_wake();
+  return grpc::Status::OK;
+}
+
 grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>* Service::View(
     grpc::CallbackServerContext* ctx) {
   return new_view_stream(this, ctx);
@@ -635,6 +660,10 @@ grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>* Service::View(
 grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>* Service::Simulate(
     grpc::CallbackServerContext* ctx) {
   return new_simulate_stream(this, ctx);
+}
+
+grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>* Service::Tick(grpc::CallbackServerContext* ctx) {
+  return new_tick_stream(this, ctx);
 }
 
 }  // namespace voxvis::server

@@ -139,7 +139,8 @@ using RawVisibilityService = v1::Visibility::WithRawCallbackMethod_CreateScene<
             v1::Visibility::WithRawCallbackMethod_GetSceneStats<
                 v1::Visibility::WithRawCallbackMethod_View<
                     v1::Visibility::WithRawCallbackMethod_Simulate<
-                        v1::Visibility::WithRawCallbackMethod_GetPvs<v1::Visibility::Service>>>>>>>;
+                        v1::Visibility::WithRawCallbackMethod_Tick<
+                            v1::Visibility::WithRawCallbackMethod_GetPvs<v1::Visibility::Service>>>>>>>>;
 
 class Service final : public RawVisibilityService {
  public:
@@ -176,6 +177,7 @@ class Service final : public RawVisibilityService {
                                           Raw* out) override;
   grpc::ServerBidiReactor<Raw, Raw>* View(grpc::CallbackServerContext* ctx) override;
   grpc::ServerBidiReactor<Raw, Raw>* Simulate(grpc::CallbackServerContext* ctx) override;
+  grpc::ServerBidiReactor<Raw, Raw>* Tick(grpc::CallbackServerContext* ctx) override;
   grpc::ServerUnaryReactor* GetPvs(grpc::CallbackServerContext* ctx, const Raw* in,
                                    Raw* out) override;
 
@@ -209,6 +211,12 @@ class Service final : public RawVisibilityService {
   /// (FrameResult::positions_epoch), else the frame is dropped (counted).
   void verify_served(const SceneEntry& e, const std::string& viewer, std::uint64_t frame, const Camera& camera,
                      const FrameResult& result);
+  /// Applies a move batch at time `t` to scene `e` (call from the scene's
+  /// strand): the clock's step limit, the engine (errors on `field_prefix` +
+  /// the engine's field, "batch.moves[3].id"), then the counters, the
+  /// clocks, the metrics and the wake list.
+  grpc::Status apply_batch(SceneEntry& e, double t, const std::vector<Move>& moves, const std::string& field_prefix,
+                           MoveReport* report);
   /// Ends a unary call, counting an error.
   void finish_unary(UnaryCall* r, const char* method, const grpc::Status& s);
   /// Runs `f` (returns grpc::Status): the engine's part of a frame or a move

@@ -15,6 +15,9 @@ grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>* new_view_stream(
 /// A Simulate stream: a backend's moves and the wake list (proto: Visibility.Simulate).
 grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>* new_simulate_stream(
     Service* svc, grpc::CallbackServerContext* ctx);
+/// A Tick stream: every viewer of a game server's tick (proto: Visibility.Tick; tick_stream.cpp).
+grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>* new_tick_stream(
+    Service* svc, grpc::CallbackServerContext* ctx);
 /// Hands a Simulate stream the scene's newest wake list.
 void deliver_wake(SimReactor* r, std::shared_ptr<const WakeSnapshot> snap);
 

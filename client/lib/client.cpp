@@ -468,9 +468,7 @@ bool SimulationSession::open(const std::string& scene_id) {
   client_.prepare(context_.get(), std::chrono::milliseconds(0));
   stream_ = client_.stub().Simulate(context_.get());
   finished_ = false;
-  have_wake_ = false;
-  wake_.clear();
-  wake_version_ = 0;
+  wake_ = WakeTracker{};
   protocol_error_.clear();
   v1::SimulateRequest subscribe;
   subscribe.set_scene_id(scene_id);
@@ -483,33 +481,88 @@ bool SimulationSession::fail(std::string message) {
   return false;
 }
 
-bool SimulationSession::apply_wake(const v1::WakeList& wake, std::vector<WakeUpdate>* wakes) {
+bool ids_from_proto(const v1::IdSet& in, std::vector<ObjectId>* out, std::string* error) {
+  out->clear();
+  if (in.gaps_size() > 0 && (!in.bits().empty() || in.base() != 0)) {
+    *error = "holds both gaps and a bitset";
+    return false;
+  }
+  if (!in.bits().empty()) {
+    const std::string& bits = in.bits();
+    if (std::uint64_t{in.base()} + 8 * std::uint64_t{bits.size()} - 1 > 0xffffffffull) {
+      // Only a set bit past the range is an error.
+      for (std::size_t k = 0; k < bits.size(); ++k)
+        for (int b = 0; b < 8; ++b)
+          if ((static_cast<unsigned char>(bits[k]) >> b & 1u) &&
+              std::uint64_t{in.base()} + 8 * k + static_cast<std::uint64_t>(b) > 0xffffffffull) {
+            *error = "a bit past id 4294967295";
+            return false;
+          }
+    }
+    for (std::size_t k = 0; k < bits.size(); ++k) {
+      const auto byte = static_cast<unsigned char>(bits[k]);
+      for (int b = 0; b < 8; ++b)
+        if (byte >> b & 1u) out->push_back(static_cast<ObjectId>(in.base() + 8 * k + static_cast<std::size_t>(b)));
+    }
+    return true;
+  }
+  std::uint64_t id = 0;
+  out->reserve(static_cast<std::size_t>(in.gaps_size()));
+  for (int i = 0; i < in.gaps_size(); ++i) {
+    const std::uint32_t gap = in.gaps(i);
+    if (i > 0 && gap == 0) {
+      *error = "gap " + std::to_string(i) + " is 0: ids are not strictly ascending";
+      return false;
+    }
+    id += gap;
+    if (id > 0xffffffffull) {
+      *error = "gap " + std::to_string(i) + " leads past id 4294967295";
+      return false;
+    }
+    out->push_back(static_cast<ObjectId>(id));
+  }
+  return true;
+}
+
+bool WakeTracker::apply(const v1::WakeList& wake, std::string* error) {
   const std::string where = "wake list version " + std::to_string(wake.version());
-  if (have_wake_ && wake.version() <= wake_version_) {
-    return fail("protocol: " + where + " does not increase (previous " +
-                std::to_string(wake_version_) + ")");
+  if (have_ && wake.version() <= version_) {
+    *error = where + " does not increase (previous " + std::to_string(version_) + ")";
+    return false;
   }
   if (wake.full()) {
     if (!strictly_ascending(wake.ids())) {
-      return fail("protocol: " + where + ": ids are not strictly ascending");
+      *error = where + ": ids are not strictly ascending";
+      return false;
     }
-    wake_.assign(wake.ids().begin(), wake.ids().end());
+    ids_.assign(wake.ids().begin(), wake.ids().end());
   } else {
-    if (!have_wake_) return fail("protocol: " + where + ": the first wake list must be full");
+    if (!have_) {
+      *error = where + ": the first wake list must be full";
+      return false;
+    }
     const std::vector<ObjectId> slept(wake.slept().begin(), wake.slept().end());
     const std::vector<ObjectId> woken(wake.woken().begin(), wake.woken().end());
     std::string why;
-    if (!apply_delta(&wake_, slept, woken, &scratch_, &why, "slept", "woken")) {
-      return fail("protocol: " + where + ": change does not apply: " + why);
+    if (!apply_delta(&ids_, slept, woken, &scratch_, &why, "slept", "woken")) {
+      *error = where + ": change does not apply: " + why;
+      return false;
     }
   }
-  if (wake.size() != wake_.size()) {
-    return fail("protocol: " + where + ": size " + std::to_string(wake.size()) +
-                " but the list has " + std::to_string(wake_.size()) + " ids");
+  if (wake.size() != ids_.size()) {
+    *error = where + ": size " + std::to_string(wake.size()) + " but the list has " + std::to_string(ids_.size()) +
+             " ids";
+    return false;
   }
-  have_wake_ = true;
-  wake_version_ = wake.version();
-  if (wakes != nullptr) wakes->push_back(WakeUpdate{wake.version(), wake.full(), wake_});
+  have_ = true;
+  version_ = wake.version();
+  return true;
+}
+
+bool SimulationSession::apply_wake(const v1::WakeList& wake, std::vector<WakeUpdate>* wakes) {
+  std::string why;
+  if (!wake_.apply(wake, &why)) return fail("protocol: " + why);
+  if (wakes != nullptr) wakes->push_back(WakeUpdate{wake.version(), wake.full(), wake_.ids()});
   return true;
 }
 

@@ -99,6 +99,69 @@ TEST(ServerCli, ViewMatchesReplay) {
   EXPECT_EQ(server.terminate(), 0);
 }
 
+TEST(ServerCli, TickMatchesReplayForItsFirstViewer) {
+  // `voxvis tick`: viewer 0 walks the recording as `replay` does (with its
+  // moves, in both encodings); with three viewers each has its own file.
+  const std::string examples = std::string(VOXVIS_SOURCE_DIR) + "/examples/paper";
+  ServerProcess server;
+  const std::vector<std::string> all_frames = lines_of(slurp(examples + "/frames.jsonl"));
+  ASSERT_GE(all_frames.size(), 30u);
+  std::string frames_text;
+  for (std::size_t i = 0; i < 30; ++i) frames_text += all_frames[i] + "\n";
+  const std::string frames = server.path("frames.jsonl");
+  spit(frames, frames_text);
+  server.extra_args() = {"--scene", "one=" + examples + "/scene.json", "--scene", "delta=" + examples + "/scene.json",
+                         "--scene", "three=" + examples + "/scene.json"};
+  ASSERT_TRUE(server.start());
+  const std::string replay_out = server.path("replay.jsonl");
+  ProcessResult r = run_program(
+      {VOXVIS_CLI, "replay", "--scene", examples + "/scene.json", "--frames", frames, "--out", replay_out, "-q"},
+      server.dir());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string expected = slurp(replay_out);
+
+  const std::string one_out = server.path("tick.jsonl");
+  r = run_program({VOXVIS_CLI, "tick", "--server", server.address(), "--scene", "one", "--frames", frames, "--out",
+                   one_out, "-q"},
+                  server.dir());
+  ASSERT_EQ(r.status, 0) << r.err;
+  expect_same_output(expected, slurp(one_out), "voxvis tick");
+  const std::string delta_out = server.path("tick_delta.jsonl");
+  r = run_program({VOXVIS_CLI, "tick", "--server", server.address(), "--scene", "delta", "--frames", frames,
+                   "--out", delta_out, "-q", "--delta"},
+                  server.dir());
+  ASSERT_EQ(r.status, 0) << r.err;
+  expect_same_output(expected, slurp(delta_out), "voxvis tick --delta");
+
+  const std::string dir = server.path("three");
+  r = run_program({VOXVIS_CLI, "tick", "--server", server.address(), "--scene", "three", "--frames", frames,
+                   "--viewers", "3", "--out", dir},
+                  server.dir());
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.err.find("30 ticks of 3 viewers"), std::string::npos) << r.err;
+  for (int v = 0; v < 3; ++v) {
+    const std::string text = slurp(dir + "/viewer-" + std::to_string(v) + ".jsonl");
+    EXPECT_EQ(lines_of(text).size(), 30u) << "viewer " << v;
+  }
+  v1::SceneInfo info;
+  ASSERT_TRUE(server.api().stats("three", &info).ok());
+  EXPECT_EQ(info.frames_served(), 90u);
+  EXPECT_EQ(info.moves_applied(), 30u * 200u);
+
+  // Arguments it refuses, naming them.
+  r = run_program({VOXVIS_CLI, "tick", "--server", server.address(), "--scene", "one", "--frames", frames,
+                   "--viewers", "2"},
+                  server.dir());
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("--out"), std::string::npos) << r.err;
+  r = run_program({VOXVIS_CLI, "tick", "--server", server.address(), "--scene", "one", "--frames", frames,
+                   "--viewers", "0", "--out", dir},
+                  server.dir());
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("--viewers"), std::string::npos) << r.err;
+  EXPECT_EQ(server.terminate(), 0);
+}
+
 // Many viewers of one scene at once: their frames run in parallel on the
 // server and share the scene's clock; every stream must be answered without
 // error (a frame racing another's clock once failed with "time goes

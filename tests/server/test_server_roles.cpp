@@ -33,6 +33,43 @@ grpc::Status simulate_status(const Api& api, const std::string& id, bool* acked)
   return sim.finish();
 }
 
+/// The status of a Tick stream that sends one tick of one viewer, with one
+/// move or none (and whether it was answered).
+grpc::Status tick_status(const Api& api, const std::string& id, bool with_move, bool* answered) {
+  grpc::ClientContext ctx;
+  api.prepare(&ctx);
+  auto stream = api.stub().Tick(&ctx);
+  v1::TickRequest r;
+  r.set_scene_id(id);
+  r.set_tick(1);
+  if (with_move) {
+    v1::Move* m = r.add_moves();
+    m->set_id(2);
+    m->mutable_center()->set_x(10);
+    m->mutable_center()->set_y(10);
+    m->mutable_center()->set_z(15);
+  }
+  v1::TickViewer* v = r.add_viewers();
+  v->set_viewer(1);
+  const Camera c = wall_camera();
+  for (auto [p, q] : {std::pair{c.eye, v->mutable_camera()->mutable_eye()},
+                      std::pair{c.dir, v->mutable_camera()->mutable_dir()},
+                      std::pair{c.up, v->mutable_camera()->mutable_up()}}) {
+    q->set_x(p.x);
+    q->set_y(p.y);
+    q->set_z(p.z);
+  }
+  v->mutable_camera()->set_fov_y_deg(c.fov_y_deg);
+  v->mutable_camera()->set_aspect(c.aspect);
+  v->mutable_camera()->set_near(c.near);
+  v->mutable_camera()->set_far(c.far);
+  v1::TickResponse resp;
+  *answered = stream->Write(r) && stream->Read(&resp) && resp.answers_size() == 1;
+  stream->WritesDone();
+  while (stream->Read(&resp)) *answered = true;
+  return stream->Finish();
+}
+
 TEST(ServerRoles, TokensAndRoles) {
   ServerProcess server;
   const std::string tokens = server.path("tokens");
@@ -61,6 +98,9 @@ TEST(ServerRoles, TokensAndRoles) {
     bool acked = true;
     EXPECT_EQ(simulate_status(*api, "s", &acked).error_code(), unauth);
     EXPECT_FALSE(acked);
+    bool answered = true;
+    EXPECT_EQ(tick_status(*api, "s", false, &answered).error_code(), unauth);
+    EXPECT_FALSE(answered);
     ASSERT_TRUE(admin.list_scenes(&ids).ok());
     EXPECT_EQ(ids, just_s);
   }
@@ -81,6 +121,14 @@ TEST(ServerRoles, TokensAndRoles) {
     bool acked = true;
     EXPECT_EQ(simulate_status(viewer, "s", &acked).error_code(), denied);
     EXPECT_FALSE(acked);
+    // Ticks without moves are a viewer's; with moves, a simulation's.
+    bool answered = false;
+    const grpc::Status tv = tick_status(viewer, "s", false, &answered);
+    EXPECT_TRUE(tv.ok()) << show(tv);
+    EXPECT_TRUE(answered);
+    const grpc::Status tm = tick_status(viewer, "s", true, &answered);
+    EXPECT_EQ(tm.error_code(), denied) << show(tm);
+    EXPECT_FALSE(answered);
     ASSERT_TRUE(admin.list_scenes(&ids).ok());
     EXPECT_EQ(ids, just_s);
     ASSERT_TRUE(admin.stats("s", &info).ok());
@@ -95,6 +143,10 @@ TEST(ServerRoles, TokensAndRoles) {
     EXPECT_TRUE(acked);
     const grpc::Status v = view_status(simulation, "s");
     EXPECT_TRUE(v.ok()) << show(v);
+    bool answered = false;
+    const grpc::Status tm = tick_status(simulation, "s", true, &answered);
+    EXPECT_TRUE(tm.ok()) << show(tm);
+    EXPECT_TRUE(answered);
     ASSERT_TRUE(simulation.list_scenes(&ids).ok());
     const auto denied = grpc::StatusCode::PERMISSION_DENIED;
     EXPECT_EQ(simulation.delete_scene("s").error_code(), denied);

@@ -24,6 +24,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include <grpcpp/grpcpp.h>
@@ -193,6 +194,101 @@ bool apply_delta(std::vector<ObjectId>* ids, const std::vector<ObjectId>& remove
                  std::string* error, const char* removed_name = "removed",
                  const char* added_name = "added");
 
+/// An IdSet (gaps or bitset) as ascending ids. Returns false, with `error`
+/// saying why, when it holds both forms, a gap of 0 after the first id (ids
+/// not strictly ascending), or an id past 2^32 - 1.
+bool ids_from_proto(const v1::IdSet& in, std::vector<ObjectId>* out, std::string* error);
+
+/// A wake list as the server sends it on Simulate and Tick streams, with the
+/// whole list after each change.
+class WakeTracker {
+ public:
+  /// Applies one WakeList message; false with `error` when it does not fit
+  /// (a version that does not increase, a first list that is not full, a
+  /// change that does not apply, a size that disagrees).
+  bool apply(const v1::WakeList& wake, std::string* error);
+  bool have() const { return have_; }
+  const std::vector<ObjectId>& ids() const { return ids_; }
+  std::uint64_t version() const { return version_; }
+
+ private:
+  bool have_ = false;
+  std::uint64_t version_ = 0;
+  std::vector<ObjectId> ids_;
+  std::vector<ObjectId> scratch_;
+};
+
+// ---------------------------------------------------------------------------
+// Tick stream
+
+/// One viewer of a tick: the id the client chose for it, and its camera.
+struct TickCamera {
+  std::uint64_t viewer = 0;
+  Camera camera;
+};
+
+/// One viewer's answer in a tick.
+struct TickViewerAnswer {
+  std::uint64_t viewer = 0;
+  /// Empty when answered; else the refused field ("viewers[2].camera.near")
+  /// and what is wrong with it.
+  std::string error_field, error;
+  double t = 0.0;      ///< Scene time its frame was computed at, seconds.
+  FrameResult result;  ///< Full PVS (deltas reassembled), the frame's wake, stats.
+};
+
+/// One answer of TickSession::tick.
+struct TickAnswer {
+  std::uint64_t tick = 0;
+  std::vector<TickViewerAnswer> viewers;  ///< In the request's order.
+  bool wake_changed = false;              ///< The scene's wake list changed (TickSession::wake()).
+  std::uint32_t ticks_skipped = 0;        ///< Ticks replaced by newer ones (0 in lock-step).
+  std::uint32_t moves_applied = 0;
+  std::vector<ObjectId> too_fast;         ///< Moved faster than their max_speed (applied anyway).
+  double server_us = 0.0;
+};
+
+/// The Tick stream, lock-step: tick() writes one tick and waits for its
+/// answer. Keeps each viewer's PVS for deltas and the scene's wake list.
+class TickSession {
+ public:
+  explicit TickSession(const Client& client) : client_(client) {}
+  ~TickSession();  ///< Cancels the stream if finish() was not called.
+  TickSession(const TickSession&) = delete;
+  TickSession& operator=(const TickSession&) = delete;
+
+  /// Starts the stream; the scene and encoding go with the first tick.
+  void open(const std::string& scene_id, v1::PvsEncoding encoding = v1::PVS_FULL);
+  /// Sends tick `tick_no` (must increase) at time `t` (seconds, not
+  /// decreasing) with `moves` (need the simulation role; may be empty), the
+  /// cameras of `viewers`, and the viewers that are gone (`left`, dropped
+  /// before the frames); waits for the answer. On failure returns false;
+  /// finish() then gives the reason. A viewer refused by the server (a bad
+  /// camera) is not a failure: its entry says why.
+  bool tick(std::uint64_t tick_no, double t, const std::vector<Move>& moves, const std::vector<TickCamera>& viewers,
+            const std::vector<std::uint64_t>& left, TickAnswer* out);
+  /// The scene's wake list as last sent (empty before the first).
+  const std::vector<ObjectId>& wake() const { return wake_.ids(); }
+  /// Ends the stream; errors as in ViewerSession::finish().
+  grpc::Status finish();
+  bool protocol_error() const { return !protocol_error_.empty(); }
+
+ private:
+  bool fail(std::string message);
+
+  const Client& client_;
+  std::unique_ptr<grpc::ClientContext> context_;
+  std::unique_ptr<grpc::ClientReaderWriter<v1::TickRequest, v1::TickResponse>> stream_;
+  std::string scene_id_;
+  v1::PvsEncoding encoding_ = v1::PVS_FULL;
+  bool first_ = true;
+  bool finished_ = false;
+  std::unordered_map<std::uint64_t, std::vector<ObjectId>> pvs_;  ///< Each viewer's previous PVS.
+  std::vector<ObjectId> added_, removed_, scratch_;
+  WakeTracker wake_;
+  std::string protocol_error_;
+};
+
 // ---------------------------------------------------------------------------
 // Simulation stream
 
@@ -231,8 +327,8 @@ class SimulationSession {
 
   /// The reassembled wake list (ascending) and its version; empty before the
   /// first wake message.
-  const std::vector<ObjectId>& wake() const { return wake_; }
-  std::uint64_t wake_version() const { return wake_version_; }
+  const std::vector<ObjectId>& wake() const { return wake_.ids(); }
+  std::uint64_t wake_version() const { return wake_.version(); }
 
   /// Ends the stream: WritesDone, then reads what is left (wake-list changes
   /// go to `wakes`, may be null) and returns the final status. Protocol
@@ -248,10 +344,7 @@ class SimulationSession {
   std::unique_ptr<grpc::ClientContext> context_;
   std::unique_ptr<grpc::ClientReaderWriter<v1::SimulateRequest, v1::SimulateResponse>> stream_;
   bool finished_ = false;
-  bool have_wake_ = false;
-  std::vector<ObjectId> wake_;
-  std::vector<ObjectId> scratch_;
-  std::uint64_t wake_version_ = 0;
+  WakeTracker wake_;
   std::string protocol_error_;
 };
 

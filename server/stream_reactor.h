@@ -1,0 +1,173 @@
+// stream_reactor.h — what the streaming calls (View and Simulate in
+// streams.cpp, Tick in tick_stream.cpp) share: admission, raw messages,
+// stopping and lifetime.
+#pragma once
+
+#include <atomic>
+#include <mutex>
+#include <string>
+
+#include <grpcpp/grpcpp.h>
+
+#include "calls.h"
+#include "convert.h"
+#include "service.h"
+
+namespace voxvis::server {
+
+// ---------------------------------------------------------------------------
+// What both streams share: admission (token, registration for shutdown), raw
+// messages parsed here (bytes that are not a Req end the stream with
+// INVALID_ARGUMENT), the stop-then-finish protocol, and a lifetime that
+// outlasts gRPC's OnDone until the last pool job referencing the stream has
+// ended. `Self` provides on_read_locked() (a message or the client's
+// half-close), advance_locked() (writes, reads, Finish), on_stop_locked() and
+// on_done() (hooks), and on_release() (called once, just before deletion).
+
+template <class Req, class Resp, class Self>
+class StreamReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>,
+                      public Stream {
+ public:
+  void OnReadDone(bool ok) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    grpc::Status parsed;
+    if (ok && !parse_message(in_, &read_))
+      parsed = malformed(Req::descriptor()->full_name(), in_.Length());
+    self().on_read_locked(ok, parsed);
+  }
+
+  void stop_if(const SceneEntry* scene, const grpc::Status& status) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (scene && entry_.get() != scene) return;
+    stop_locked(status);
+    self().advance_locked();
+  }
+
+  void OnWriteDone(bool ok) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    writing_ = false;
+    if (!ok) stop_locked(grpc::Status(grpc::StatusCode::CANCELLED, "client gone"));
+    self().advance_locked();
+  }
+
+  void OnCancel() override {
+    leave_call();  // Nobody waits for this stream any more.
+    std::lock_guard<std::mutex> lock(mu_);
+    stop_locked(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled"));
+    self().advance_locked();
+  }
+
+  void OnDone() override {
+    if (registered_) svc_->remove_stream(this);
+    leave_call();
+    self().on_done();
+    bool del;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      done_ = true;
+      del = jobs_ == 0;
+    }
+    if (del) release();
+  }
+
+ protected:
+  StreamReactor(Service* svc, const char* method) : svc_(svc), method_(method) {}
+
+  /// Checks the call's token and registers the stream. Call from the
+  /// derived constructor without holding mu_ (the service's stream lock comes
+  /// first in the lock order).
+  grpc::Status admit(grpc::CallbackServerContext* ctx, Role role) {
+    client_ = ctx->peer();
+    const grpc::Status auth = svc_->tokens().authorize(ctx, role);
+    registered_ = svc_->add_stream(this);
+    if (!auth.ok()) return auth;
+    if (!registered_) return shutting_down_status();
+    const grpc::Status busy = svc_->enter_call();
+    in_call_ = busy.ok();
+    return busy;
+  }
+
+  void stop_locked(const grpc::Status& status) {
+    if (!stopping_) {
+      stopping_ = true;
+      stop_status_ = status;
+    }
+    self().on_stop_locked();
+  }
+
+  /// Finish with the stop status, or OK when the client closed.
+  void finish_locked() {
+    finished_ = true;
+    const grpc::Status s = stopping_ ? stop_status_ : grpc::Status::OK;
+    if (!s.ok() && s.error_code() != grpc::StatusCode::CANCELLED) svc_->count_error(method_, s);
+    this->Finish(s);
+  }
+
+  /// Counts the end of a pool job; true when the stream is to be released.
+  bool end_job_locked() {
+    --jobs_;
+    return done_ && jobs_ == 0;
+  }
+
+  void release() {
+    self().on_release();
+    delete &self();
+  }
+
+  void start_read() { StartRead(&in_); }
+
+  /// Gives back the stream's place among the calls in progress, once.
+  void leave_call() {
+    if (in_call_ && !left_call_.exchange(true)) svc_->leave_call();
+  }
+
+  /// The scene id of a message: the first must name a valid one, later ones
+  /// may repeat it or leave it empty.
+  grpc::Status check_scene_field_locked(const std::string& id) const {
+    if (entry_) {
+      if (id.empty() || id == entry_->id) return grpc::Status::OK;
+      return invalid(Status::Error("scene_id", "cannot change within a stream (stream is on '" +
+                                                   entry_->id + "')"));
+    }
+    if (id.empty())
+      return invalid(Status::Error("scene_id", "the first message of a stream must name the scene"));
+    return check_scene_id(id);
+  }
+
+  /// Makes the first message's scene the stream's.
+  grpc::Status find_scene_locked(const std::string& id) {
+    entry_ = svc_->find(id);
+    return entry_ ? grpc::Status::OK : no_scene(id);
+  }
+
+  /// Writes write_ (one write in flight: the caller checked writing_).
+  void start_write_locked() {
+    if (grpc::Status s = serialize_message(write_, &out_); !s.ok()) {
+      stop_locked(s);
+      return;
+    }
+    writing_ = true;
+    StartWrite(&out_);
+  }
+
+  Service* svc_;
+  const char* method_;
+  std::string client_;       // The connection's peer: the pool's admission key. Set in admit.
+  bool registered_ = false;  // Written before any reaction can run.
+  bool in_call_ = false;     // Took a place among the calls in progress; as registered_.
+  std::atomic<bool> left_call_{false};
+  std::mutex mu_;
+  std::shared_ptr<SceneEntry> entry_;  // Guarded by mu_; set by the first message.
+  bool writing_ = false, stopping_ = false, finished_ = false, done_ = false;  // Guarded by mu_.
+  grpc::Status stop_status_;           // Guarded by mu_.
+  int jobs_ = 0;                       // Guarded by mu_: pool jobs referencing this.
+  Req read_;                           // The last message read.
+  Resp write_;                         // The message being written.
+
+ private:
+  grpc::ByteBuffer in_;   // Owned by the outstanding read.
+  grpc::ByteBuffer out_;  // Owned by the outstanding write.
+  Self& self() { return static_cast<Self&>(*this); }
+};
+
+}  // namespace voxvis::server
