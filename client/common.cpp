@@ -1,11 +1,15 @@
 #include "common.h"
 
 #include <algorithm>
+#include <fstream>
+#include <cstring>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 
 #include "voxvis/client.h"
+#include "voxvis/format.h"
 
 namespace voxvis::cli {
 
@@ -18,6 +22,38 @@ bool read_file(const std::string& path, std::string* text, FormatError* error) {
 
 bool blank(const std::string& line) {
   return line.find_first_not_of(" \t\r") == std::string::npos;
+}
+
+bool read_frames(const std::string& path, const char* what, std::vector<FrameInput>* frames,
+                 std::vector<int>* lines) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    report(FormatError{path, 0, "", std::string("cannot open: ") + std::strerror(errno)});
+    return false;
+  }
+  FrameInput frame;
+  FormatError error;
+  std::string line;
+  int line_no = 0;
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (blank(line)) continue;
+    if (!parse_frame_line(line, path, line_no, &frame, &error)) {
+      report(error);
+      return false;
+    }
+    frames->push_back(frame);
+    if (lines != nullptr) lines->push_back(line_no);
+  }
+  if (in.bad()) {
+    report(FormatError{path, line_no, "", std::string("cannot read: ") + std::strerror(errno)});
+    return false;
+  }
+  if (frames->empty()) {
+    report(FormatError{path, 0, "", std::string("no frames in the file (") + what + " needs at least one)"});
+    return false;
+  }
+  return true;
 }
 
 double percentile(const std::vector<double>& sorted, double p) {

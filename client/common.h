@@ -24,6 +24,13 @@ bool read_file(const std::string& path, std::string* text, FormatError* error);
 bool blank(const std::string& line);
 
 /// Nearest-rank percentile of sorted values, p in (0, 100].
+/// Reads a frames file (JSON Lines) whole: its frames, and each one's line
+/// in the file (`lines`, may be null). On error reports it (file:line) and
+/// returns false; a file without a frame is an error saying that `what`
+/// needs one.
+bool read_frames(const std::string& path, const char* what, std::vector<FrameInput>* frames,
+                 std::vector<int>* lines = nullptr);
+
 double percentile(const std::vector<double>& sorted, double p);
 
 /// Mean, median and 99th percentile of per-frame values (0 when empty).

@@ -327,32 +327,9 @@ class CameraSource {
 };
 
 bool read_cameras(const std::string& path, std::vector<Camera>* cameras) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    report(FormatError{path, 0, "", std::string("cannot open: ") + std::strerror(errno)});
-    return false;
-  }
-  FrameInput frame;
-  FormatError error;
-  std::string line;
-  int line_no = 0;
-  while (std::getline(in, line)) {
-    ++line_no;
-    if (blank(line)) continue;
-    if (!parse_frame_line(line, path, line_no, &frame, &error)) {
-      report(error);
-      return false;
-    }
-    cameras->push_back(frame.camera);
-  }
-  if (in.bad()) {
-    report(FormatError{path, line_no, "", std::string("cannot read: ") + std::strerror(errno)});
-    return false;
-  }
-  if (cameras->empty()) {
-    report(FormatError{path, 0, "", "no frames in the file (loadgen needs at least one camera)"});
-    return false;
-  }
+  std::vector<FrameInput> frames;
+  if (!read_frames(path, "loadgen", &frames)) return false;
+  for (const FrameInput& f : frames) cameras->push_back(f.camera);
   return true;
 }
 

@@ -8,7 +8,6 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <memory>
 #include <string>
 #include <vector>
@@ -28,26 +27,9 @@ int run_tick(const TickArgs& args) {
   if (!valid_scene_id(args.scene, &message)) return report(FormatError{"", 0, "--scene", message});
   if (args.viewers > 1 && args.out.empty())
     return report(FormatError{"", 0, "--out", "with --viewers above 1, name a directory for the viewers' files"});
-  std::ifstream in(args.frames, std::ios::binary);
-  if (!in) return report(FormatError{args.frames, 0, "", std::string("cannot open: ") + std::strerror(errno)});
   std::vector<FrameInput> frames;
   std::vector<int> lines;  // Each frame's line in the file, for errors.
-  {
-    FrameInput frame;
-    FormatError error;
-    std::string line;
-    int line_no = 0;
-    while (std::getline(in, line)) {
-      ++line_no;
-      if (blank(line)) continue;
-      if (!parse_frame_line(line, args.frames, line_no, &frame, &error)) return report(error);
-      frames.push_back(frame);
-      lines.push_back(line_no);
-    }
-    if (in.bad())
-      return report(FormatError{args.frames, line_no, "", std::string("cannot read: ") + std::strerror(errno)});
-  }
-  if (frames.empty()) return report(FormatError{args.frames, 0, "", "holds no frame"});
+  if (!read_frames(args.frames, "tick", &frames, &lines)) return kExitError;
 
   // One output a viewer: the file itself for one, DIR/viewer-<k>.jsonl for several.
   const auto viewers = static_cast<std::size_t>(args.viewers);

@@ -134,6 +134,46 @@ class StreamReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::Byt
     return check_scene_id(id);
   }
 
+  /// The end of a constructor for a stream that reads at once: the first
+  /// read, or the refusal of `admitted`.
+  void open_locked(const grpc::Status& admitted) {
+    if (admitted.ok()) {
+      start_read();
+    } else {
+      stop_locked(admitted);
+    }
+    self().advance_locked();
+  }
+
+  /// A PVS stream's message (View, Tick): the scene (the first message's
+  /// becomes the stream's, with its `encoding`; `*first` says it was), then
+  /// `number` (the field `number_field`) increasing and the time `t` valid
+  /// and not decreasing along the stream.
+  grpc::Status accept_sequence_locked(const std::string& scene_id, int encoding, bool* first,
+                                      const char* number_field, std::uint64_t number, double t) {
+    *first = false;
+    if (grpc::Status s = check_scene_field_locked(scene_id); !s.ok()) return s;
+    if (!entry_) {
+      if (encoding != v1::PVS_FULL && encoding != v1::PVS_DELTA)
+        return invalid(Status::Error("encoding", "unknown value " + std::to_string(encoding)));
+      if (grpc::Status s = find_scene_locked(scene_id); !s.ok()) return s;
+      encoding_ = static_cast<v1::PvsEncoding>(encoding);
+      *first = true;
+    }
+    if (have_number_ && number <= last_number_)
+      return invalid(Status::Error(number_field, "must increase along a stream: " + std::to_string(number) +
+                                                     " after " + std::to_string(last_number_)));
+    if (Status s = validate_time("t", t); !s) return invalid(s);
+    if (have_number_ && t < last_t_) return invalid(Status::Error("t", "must not decrease along a stream"));
+    return grpc::Status::OK;
+  }
+  /// Records a message accept_sequence_locked let through.
+  void sequence_taken_locked(std::uint64_t number, double t) {
+    have_number_ = true;
+    last_number_ = number;
+    last_t_ = t;
+  }
+
   /// Makes the first message's scene the stream's.
   grpc::Status find_scene_locked(const std::string& id) {
     entry_ = svc_->find(id);
@@ -162,6 +202,10 @@ class StreamReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::Byt
   grpc::Status stop_status_;           // Guarded by mu_.
   int jobs_ = 0;                       // Guarded by mu_: pool jobs referencing this.
   Req read_;                           // The last message read.
+  v1::PvsEncoding encoding_ = v1::PVS_FULL;  // Guarded by mu_: a PVS stream's, from its first message.
+  bool have_number_ = false;           // Guarded by mu_: accept_sequence_locked's.
+  std::uint64_t last_number_ = 0;
+  double last_t_ = 0.0;
   Resp write_;                         // The message being written.
 
  private:

@@ -43,12 +43,7 @@ class ViewReactor final
   ViewReactor(Service* svc, grpc::CallbackServerContext* ctx) : StreamReactor(svc, "View") {
     const grpc::Status admitted = admit(ctx, Role::Viewer);
     std::lock_guard<std::mutex> lock(mu_);
-    if (admitted.ok()) {
-      start_read();
-    } else {
-      stop_locked(admitted);
-    }
-    advance_locked();
+    open_locked(admitted);
   }
 
  private:
@@ -82,28 +77,17 @@ class ViewReactor final
 
   grpc::Status accept_locked() {
     const v1::ViewRequest& r = read_;
-    if (grpc::Status s = check_scene_field_locked(r.scene_id()); !s.ok()) return s;
-    if (!entry_) {
-      if (r.encoding() != v1::PVS_FULL && r.encoding() != v1::PVS_DELTA)
-        return invalid(Status::Error("encoding", "unknown value " + std::to_string(r.encoding())));
+    bool first = false;
+    const grpc::Status seq = accept_sequence_locked(r.scene_id(), r.encoding(), &first, "frame", r.frame(), r.t());
+    if (first) {
       // entry_ set means counted as a viewer (released in on_release).
-      if (grpc::Status s = find_scene_locked(r.scene_id()); !s.ok()) return s;
-      encoding_ = r.encoding();
       entry_->viewers.fetch_add(1, std::memory_order_relaxed);
       if (entry_->metrics) entry_->metrics->viewers(+1);
     }
-    if (have_frame_ && r.frame() <= last_frame_)
-      return invalid(Status::Error("frame", "must increase along a stream: " +
-                                                std::to_string(r.frame()) + " after " +
-                                                std::to_string(last_frame_)));
-    if (Status s = validate_time("t", r.t()); !s) return invalid(s);
-    if (have_frame_ && r.t() < last_t_)
-      return invalid(Status::Error("t", "must not decrease along a stream"));
+    if (!seq.ok()) return seq;
     Pending p;
     if (Status s = camera_from_proto(r.camera(), r.has_camera(), &p.camera); !s) return invalid(s);
-    have_frame_ = true;
-    last_frame_ = r.frame();
-    last_t_ = r.t();
+    sequence_taken_locked(r.frame(), r.t());
     p.frame = r.frame();
     p.t = r.t();
     p.received = Clock::now();
@@ -237,10 +221,6 @@ class ViewReactor final
     }
   }
 
-  v1::PvsEncoding encoding_ = v1::PVS_FULL;
-  bool have_frame_ = false;
-  std::uint64_t last_frame_ = 0;
-  double last_t_ = 0.0;
   std::optional<Pending> pending_;       // Guarded by mu_.
   std::uint32_t skipped_ = 0;            // Guarded by mu_.
   std::optional<Ready> ready_;           // Guarded by mu_.
@@ -314,12 +294,12 @@ class SimReactor final
     if (!r.has_batch()) return grpc::Status::OK;
     const v1::MoveBatch& b = r.batch();
     if (Status s = validate_time("batch.t", b.t()); !s) return invalid(s);
-    if (have_t_ && b.t() < last_t_)
+    if (have_batch_t_ && b.t() < last_batch_t_)
       return invalid(Status::Error("batch.t", "must not decrease along a stream"));
     std::vector<Move> moves;
     if (Status s = moves_from_proto(b, &moves); !s) return invalid(s);
-    have_t_ = true;
-    last_t_ = b.t();
+    have_batch_t_ = true;
+    last_batch_t_ = b.t();
     applying_ = true;
     ++jobs_;
     entry_->strand->post([this, entry = entry_, seq = b.seq(), t = b.t(),
@@ -416,8 +396,8 @@ class SimReactor final
   }
 
   std::shared_ptr<WakeSink> sink_;
-  bool have_t_ = false;
-  double last_t_ = 0.0;
+  bool have_batch_t_ = false;
+  double last_batch_t_ = 0.0;
   std::optional<v1::MoveAck> ack_;     // Guarded by mu_: acknowledgement waiting to be written.
   std::shared_ptr<const WakeSnapshot> wake_latest_, wake_sent_;  // Guarded by mu_.
   bool reading_ = false, applying_ = false, eof_ = false;  // Guarded by mu_.

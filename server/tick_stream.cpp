@@ -50,12 +50,7 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
     const grpc::Status admitted = admit(ctx, Role::Viewer);
     may_move_ = admitted.ok() && svc->tokens().authorize(ctx, Role::Simulation).ok();
     std::lock_guard<std::mutex> lock(mu_);
-    if (admitted.ok()) {
-      start_read();
-    } else {
-      stop_locked(admitted);
-    }
-    advance_locked();
+    open_locked(admitted);
   }
 
  private:
@@ -110,18 +105,9 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
 
   grpc::Status accept_locked() {
     const v1::TickRequest& r = read_;
-    if (grpc::Status s = check_scene_field_locked(r.scene_id()); !s.ok()) return s;
-    if (!entry_) {
-      if (r.encoding() != v1::PVS_FULL && r.encoding() != v1::PVS_DELTA)
-        return invalid(Status::Error("encoding", "unknown value " + std::to_string(r.encoding())));
-      if (grpc::Status s = find_scene_locked(r.scene_id()); !s.ok()) return s;
-      encoding_ = r.encoding();
-    }
-    if (have_tick_ && r.tick() <= last_tick_)
-      return invalid(Status::Error("tick", "must increase along a stream: " + std::to_string(r.tick()) +
-                                               " after " + std::to_string(last_tick_)));
-    if (Status s = validate_time("t", r.t()); !s) return invalid(s);
-    if (have_tick_ && r.t() < last_t_) return invalid(Status::Error("t", "must not decrease along a stream"));
+    bool first = false;
+    if (grpc::Status s = accept_sequence_locked(r.scene_id(), r.encoding(), &first, "tick", r.tick(), r.t()); !s.ok())
+      return s;
     if (static_cast<std::size_t>(r.viewers_size()) > kMaxTickViewers)
       return invalid(Status::Error("viewers", "at most " + std::to_string(kMaxTickViewers) + " a tick, got " +
                                                   std::to_string(r.viewers_size())));
@@ -140,13 +126,13 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
     p.t = r.t();
     p.received = Clock::now();
     p.entries.resize(static_cast<std::size_t>(r.viewers_size()));
-    std::unordered_map<std::uint64_t, int> first;  // Viewer id -> its first entry.
+    std::unordered_map<std::uint64_t, int> first_at;  // Viewer id -> its first entry.
     for (int i = 0; i < r.viewers_size(); ++i) {
       const v1::TickViewer& v = r.viewers(i);
       Entry& e = p.entries[static_cast<std::size_t>(i)];
       e.viewer = v.viewer();
       const std::string f = "viewers[" + std::to_string(i) + "]";
-      if (auto [at, fresh] = first.emplace(v.viewer(), i); !fresh) {
+      if (auto [at, fresh] = first_at.emplace(v.viewer(), i); !fresh) {
         e.error = Status::Error(f + ".viewer", "viewer " + std::to_string(v.viewer()) +
                                                    " is given twice in one tick (first at viewers[" +
                                                    std::to_string(at->second) + "])");
@@ -154,9 +140,7 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
         e.error = Status::Error(f + "." + s.field, s.message);
       }
     }
-    have_tick_ = true;
-    last_tick_ = r.tick();
-    last_t_ = r.t();
+    sequence_taken_locked(r.tick(), r.t());
     for (std::uint64_t id : r.left()) left_.push_back(id);
     if (!moves.empty()) {
       // While a tick computes, later moves wait for its frames: a tick's
@@ -404,10 +388,6 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
   }
 
   bool may_move_ = false;  // The token's role allows moves.
-  v1::PvsEncoding encoding_ = v1::PVS_FULL;
-  bool have_tick_ = false;
-  std::uint64_t last_tick_ = 0;
-  double last_t_ = 0.0;
   std::optional<Pending> pending_;  // Guarded by mu_.
   std::vector<std::uint64_t> left_;  // Guarded by mu_: ids to drop when the next tick starts.
   std::uint32_t skipped_ = 0;       // Guarded by mu_.

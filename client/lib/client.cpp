@@ -368,40 +368,15 @@ bool apply_delta(std::vector<ObjectId>* pvs, const std::vector<ObjectId>& remove
 // ---------------------------------------------------------------------------
 // ViewerSession
 
-ViewerSession::~ViewerSession() {
-  if (context_ != nullptr && !finished_) {
-    context_->TryCancel();
-    if (stream_ != nullptr) stream_->Finish();
-  }
-}
-
 void ViewerSession::open(const std::string& scene_id, v1::PvsEncoding encoding) {
-  context_ = std::make_unique<grpc::ClientContext>();
-  client_.prepare(context_.get(), std::chrono::milliseconds(0));
-  stream_ = client_.stub().View(context_.get());
-  scene_id_ = scene_id;
-  encoding_ = encoding;
-  first_ = true;
-  finished_ = false;
+  start(&v1::Visibility::Stub::View, scene_id, encoding);
   pvs_.clear();
-  protocol_error_.clear();
-}
-
-bool ViewerSession::fail(std::string message) {
-  protocol_error_ = std::move(message);
-  context_->TryCancel();
-  return false;
 }
 
 bool ViewerSession::frame(std::uint64_t frame_no, double t, const Camera& camera,
                           ViewFrame* out) {
-  if (stream_ == nullptr || finished_ || !protocol_error_.empty()) return false;
   v1::ViewRequest request;
-  if (first_) {
-    request.set_scene_id(scene_id_);
-    request.set_encoding(encoding_);
-    first_ = false;
-  }
+  if (!ready(&request)) return false;
   request.set_frame(frame_no);
   request.set_t(t);
   to_proto(camera, request.mutable_camera());
@@ -441,16 +416,6 @@ bool ViewerSession::frame(std::uint64_t frame_no, double t, const Camera& camera
   out->frames_skipped = response.frames_skipped();
   out->server_us = response.server_us();
   return true;
-}
-
-grpc::Status ViewerSession::finish() {
-  if (stream_ == nullptr) return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION, "not open");
-  if (finished_) return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION, "already finished");
-  finished_ = true;
-  if (protocol_error_.empty()) stream_->WritesDone();
-  const grpc::Status status = stream_->Finish();
-  if (!protocol_error_.empty()) return grpc::Status(grpc::StatusCode::INTERNAL, protocol_error_);
-  return status;
 }
 
 // ---------------------------------------------------------------------------

@@ -8,42 +8,17 @@
 
 namespace voxvis::client {
 
-TickSession::~TickSession() {
-  if (context_ != nullptr && !finished_) {
-    context_->TryCancel();
-    if (stream_ != nullptr) stream_->Finish();
-  }
-}
-
 void TickSession::open(const std::string& scene_id, v1::PvsEncoding encoding) {
-  context_ = std::make_unique<grpc::ClientContext>();
-  client_.prepare(context_.get(), std::chrono::milliseconds(0));
-  stream_ = client_.stub().Tick(context_.get());
-  scene_id_ = scene_id;
-  encoding_ = encoding;
-  first_ = true;
-  finished_ = false;
+  start(&v1::Visibility::Stub::Tick, scene_id, encoding);
   pvs_.clear();
   wake_ = WakeTracker{};
-  protocol_error_.clear();
-}
-
-bool TickSession::fail(std::string message) {
-  protocol_error_ = std::move(message);
-  context_->TryCancel();
-  return false;
 }
 
 bool TickSession::tick(std::uint64_t tick_no, double t, const std::vector<Move>& moves,
                        const std::vector<TickCamera>& viewers, const std::vector<std::uint64_t>& left,
                        TickAnswer* out) {
-  if (stream_ == nullptr || finished_ || !protocol_error_.empty()) return false;
   v1::TickRequest request;
-  if (first_) {
-    request.set_scene_id(scene_id_);
-    request.set_encoding(encoding_);
-    first_ = false;
-  }
+  if (!ready(&request)) return false;
   request.set_tick(tick_no);
   request.set_t(t);
   for (const Move& m : moves) {
@@ -112,16 +87,6 @@ bool TickSession::tick(std::uint64_t tick_no, double t, const std::vector<Move>&
   out->too_fast.assign(response.too_fast().begin(), response.too_fast().end());
   out->server_us = response.server_us();
   return true;
-}
-
-grpc::Status TickSession::finish() {
-  if (stream_ == nullptr) return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION, "not open");
-  if (finished_) return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION, "already finished");
-  finished_ = true;
-  if (protocol_error_.empty()) stream_->WritesDone();
-  const grpc::Status status = stream_->Finish();
-  if (!protocol_error_.empty()) return grpc::Status(grpc::StatusCode::INTERNAL, protocol_error_);
-  return status;
 }
 
 }  // namespace voxvis::client

@@ -135,6 +135,79 @@ class Client {
 // ---------------------------------------------------------------------------
 // Viewer stream
 
+/// What the lock-step PVS streams (ViewerSession, TickSession) share: the
+/// call, the first message that names the scene and the encoding, a
+/// protocol error that cancels the call, and the ending.
+template <class Request, class Response>
+class PvsStreamSession {
+ public:
+  PvsStreamSession(const PvsStreamSession&) = delete;
+  PvsStreamSession& operator=(const PvsStreamSession&) = delete;
+
+  /// Ends the stream (WritesDone, then the final status). A protocol error
+  /// seen before (a delta that does not apply, an answer to another request)
+  /// comes back as INTERNAL with a message starting "protocol: ";
+  /// protocol_error() then tells it from the server's own INTERNAL.
+  grpc::Status finish() {
+    if (stream_ == nullptr) return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION, "not open");
+    if (finished_) return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION, "already finished");
+    finished_ = true;
+    if (protocol_error_.empty()) stream_->WritesDone();
+    const grpc::Status status = stream_->Finish();
+    if (!protocol_error_.empty()) return grpc::Status(grpc::StatusCode::INTERNAL, protocol_error_);
+    return status;
+  }
+  bool protocol_error() const { return !protocol_error_.empty(); }
+
+ protected:
+  using Start = std::unique_ptr<grpc::ClientReaderWriter<Request, Response>> (v1::Visibility::Stub::*)(
+      grpc::ClientContext*);
+  explicit PvsStreamSession(const Client& client) : client_(client) {}
+  ~PvsStreamSession() {  ///< Cancels the stream if finish() was not called.
+    if (context_ != nullptr && !finished_) {
+      context_->TryCancel();
+      if (stream_ != nullptr) stream_->Finish();
+    }
+  }
+  /// Starts a call of `start` (the stub's View or Tick).
+  void start(Start method, const std::string& scene_id, v1::PvsEncoding encoding) {
+    context_ = std::make_unique<grpc::ClientContext>();
+    client_.prepare(context_.get(), std::chrono::milliseconds(0));
+    stream_ = (client_.stub().*method)(context_.get());
+    scene_id_ = scene_id;
+    encoding_ = encoding;
+    first_ = true;
+    finished_ = false;
+    protocol_error_.clear();
+  }
+  /// Whether the stream may send; sets the scene and encoding on the first.
+  bool ready(Request* request) {
+    if (stream_ == nullptr || finished_ || !protocol_error_.empty()) return false;
+    if (first_) {
+      request->set_scene_id(scene_id_);
+      request->set_encoding(encoding_);
+      first_ = false;
+    }
+    return true;
+  }
+  /// Records a protocol error and cancels the call; returns false.
+  bool fail(std::string message) {
+    protocol_error_ = std::move(message);
+    context_->TryCancel();
+    return false;
+  }
+
+  const Client& client_;
+  std::unique_ptr<grpc::ClientContext> context_;
+  std::unique_ptr<grpc::ClientReaderWriter<Request, Response>> stream_;
+  std::string scene_id_;
+  v1::PvsEncoding encoding_ = v1::PVS_FULL;
+  bool first_ = true;
+  bool finished_ = false;
+  std::vector<ObjectId> scratch_;
+  std::string protocol_error_;
+};
+
 /// One answer of ViewerSession::frame.
 struct ViewFrame {
   std::uint64_t frame = 0;      ///< The request's frame number, echoed.
@@ -146,12 +219,9 @@ struct ViewFrame {
 
 /// The View stream, lock-step: frame() writes one request and waits for its
 /// answer.
-class ViewerSession {
+class ViewerSession : public PvsStreamSession<v1::ViewRequest, v1::ViewResponse> {
  public:
-  explicit ViewerSession(const Client& client) : client_(client) {}
-  ~ViewerSession();  ///< Cancels the stream if finish() was not called.
-  ViewerSession(const ViewerSession&) = delete;
-  ViewerSession& operator=(const ViewerSession&) = delete;
+  explicit ViewerSession(const Client& client) : PvsStreamSession(client) {}
 
   /// Starts the stream. The scene and encoding go with the first frame, so an
   /// unknown scene shows as a failed frame().
@@ -162,26 +232,8 @@ class ViewerSession {
   /// false; finish() then gives the reason.
   bool frame(std::uint64_t frame_no, double t, const Camera& camera, ViewFrame* out);
 
-  /// Ends the stream (WritesDone, then the final status). A protocol error
-  /// seen by frame() (a delta that does not apply, an answer to another
-  /// frame) comes back as INTERNAL with a message starting "protocol: ";
-  /// protocol_error() then tells it from the server's own INTERNAL.
-  grpc::Status finish();
-  bool protocol_error() const { return !protocol_error_.empty(); }
-
  private:
-  bool fail(std::string message);
-
-  const Client& client_;
-  std::unique_ptr<grpc::ClientContext> context_;
-  std::unique_ptr<grpc::ClientReaderWriter<v1::ViewRequest, v1::ViewResponse>> stream_;
-  std::string scene_id_;
-  v1::PvsEncoding encoding_ = v1::PVS_FULL;
-  bool first_ = true;
-  bool finished_ = false;
   std::vector<ObjectId> pvs_;  ///< Previous answer's PVS, for deltas.
-  std::vector<ObjectId> scratch_;
-  std::string protocol_error_;
 };
 
 /// Applies a change to an ascending id set: `ids` minus `removed` plus
@@ -250,12 +302,9 @@ struct TickAnswer {
 
 /// The Tick stream, lock-step: tick() writes one tick and waits for its
 /// answer. Keeps each viewer's PVS for deltas and the scene's wake list.
-class TickSession {
+class TickSession : public PvsStreamSession<v1::TickRequest, v1::TickResponse> {
  public:
-  explicit TickSession(const Client& client) : client_(client) {}
-  ~TickSession();  ///< Cancels the stream if finish() was not called.
-  TickSession(const TickSession&) = delete;
-  TickSession& operator=(const TickSession&) = delete;
+  explicit TickSession(const Client& client) : PvsStreamSession(client) {}
 
   /// Starts the stream; the scene and encoding go with the first tick.
   void open(const std::string& scene_id, v1::PvsEncoding encoding = v1::PVS_FULL);
@@ -269,24 +318,11 @@ class TickSession {
             const std::vector<std::uint64_t>& left, TickAnswer* out);
   /// The scene's wake list as last sent (empty before the first).
   const std::vector<ObjectId>& wake() const { return wake_.ids(); }
-  /// Ends the stream; errors as in ViewerSession::finish().
-  grpc::Status finish();
-  bool protocol_error() const { return !protocol_error_.empty(); }
 
  private:
-  bool fail(std::string message);
-
-  const Client& client_;
-  std::unique_ptr<grpc::ClientContext> context_;
-  std::unique_ptr<grpc::ClientReaderWriter<v1::TickRequest, v1::TickResponse>> stream_;
-  std::string scene_id_;
-  v1::PvsEncoding encoding_ = v1::PVS_FULL;
-  bool first_ = true;
-  bool finished_ = false;
   std::unordered_map<std::uint64_t, std::vector<ObjectId>> pvs_;  ///< Each viewer's previous PVS.
-  std::vector<ObjectId> added_, removed_, scratch_;
+  std::vector<ObjectId> added_, removed_;
   WakeTracker wake_;
-  std::string protocol_error_;
 };
 
 // ---------------------------------------------------------------------------
