@@ -81,7 +81,11 @@ TEST(Builds, ABuildStopsWhenItsDeadlinePasses) {
   const double cpu = server.cpu_seconds() - cpu0;
   std::printf("server CPU in the 2 s after the deadline: %.2f s\n", cpu);
   EXPECT_LT(cpu, 0.5) << "the build went on after its client's deadline";
-  EXPECT_THAT(server.log(), HasSubstr("build of scene 'big' stopped"));
+  // The build's worker runs at a lower priority: on a busy machine its log
+  // line may come a little after the work stopped.
+  EXPECT_TRUE(wait_until([&] { return server.log().find("build of scene 'big' stopped") != std::string::npos; },
+                         Seconds(20)))
+      << server.log();
   v1::SceneInfo info;
   EXPECT_EQ(api.stats("big", &info).error_code(), grpc::StatusCode::NOT_FOUND);
   // The id and the bytes it had reserved are free again.
