@@ -205,6 +205,45 @@ TEST(TickStream, ABadEntryFailsAlone) {
   EXPECT_NE(st.error_message().find("tick: must increase"), std::string::npos) << st.error_message();
 }
 
+TEST(TickStream, ViewerLimits) {
+  // A stream keeps at most 1,024 viewers: a new one beyond is refused in its
+  // entry until others are named in `left`; a tick of more than 1,024
+  // viewers ends the stream.
+  ServerProcess server;
+  ASSERT_TRUE(server.start());
+  const Api api = server.api();
+  const auto client = tick_client(server);
+  test::RandomSceneParams p;
+  p.dynamic_fraction = 0.0;
+  p.spheres = 20;
+  p.boxes = 10;
+  const SceneDesc desc = test::random_scene(p, 81);
+  ASSERT_TRUE(api.create_scene_json("limits", scene_to_json(desc)).ok());
+  test::CameraPathParams cp;
+  cp.frames = 1;
+  const Camera cam = test::random_camera_path(desc, 81, cp)[0];
+  std::vector<client::TickCamera> all;
+  for (std::uint64_t v = 0; v < 1024; ++v) all.push_back({v, cam});
+  client::TickSession session(*client);
+  session.open("limits", v1::PVS_DELTA);
+  client::TickAnswer answer;
+  ASSERT_TRUE(session.tick(1, 0.0, {}, all, {}, &answer)) << session.finish().error_message();
+  ASSERT_EQ(answer.viewers.size(), 1024u);
+  for (const auto& a : answer.viewers) ASSERT_TRUE(a.error.empty()) << a.error;
+  ASSERT_TRUE(session.tick(2, 0.0, {}, {{5000, cam}, {3, cam}}, {}, &answer)) << session.finish().error_message();
+  EXPECT_EQ(answer.viewers[0].error_field, "viewers[0].viewer");
+  EXPECT_NE(answer.viewers[0].error.find("1024"), std::string::npos) << answer.viewers[0].error;
+  EXPECT_TRUE(answer.viewers[1].error.empty()) << "viewers kept are still answered";
+  ASSERT_TRUE(session.tick(3, 0.0, {}, {{5000, cam}}, {0}, &answer)) << session.finish().error_message();
+  EXPECT_TRUE(answer.viewers[0].error.empty()) << answer.viewers[0].error;
+  all.push_back({9999, cam});
+  EXPECT_FALSE(session.tick(4, 0.0, {}, all, {}, &answer));
+  const grpc::Status st = session.finish();
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(st.error_message().find("viewers: at most 1024 a tick, got 1025"), std::string::npos)
+      << st.error_message();
+}
+
 TEST(TickStream, AFloodIsShedLatestWinsAndNoMoveIsLost) {
   ServerProcess server;
   ASSERT_TRUE(server.start());
