@@ -15,6 +15,20 @@
 
 namespace voxvis::server {
 
+/// A wake list for a stream that last sent `sent` (null: nothing yet): the
+/// whole of `now` the first time, else the ids that joined and left.
+inline void wake_to_proto(const WakeSnapshot& now, const WakeSnapshot* sent, v1::WakeList* w) {
+  w->set_version(now.version);
+  w->set_size(static_cast<std::uint32_t>(now.ids.size()));
+  if (sent == nullptr) {
+    w->set_full(true);
+    add_ids(now.ids, w->mutable_ids());
+  } else {
+    difference(now.ids, sent->ids, w->mutable_woken());
+    difference(sent->ids, now.ids, w->mutable_slept());
+  }
+}
+
 // ---------------------------------------------------------------------------
 // What both streams share: admission (token, registration for shutdown), raw
 // messages parsed here (bytes that are not a Req end the stream with

@@ -367,16 +367,7 @@ class SimReactor final
         start_write_locked();
       } else if (wake_latest_ && wake_latest_ != wake_sent_ && !stopping_) {
         write_.Clear();
-        v1::WakeList* w = write_.mutable_wake();
-        w->set_version(wake_latest_->version);
-        w->set_size(static_cast<std::uint32_t>(wake_latest_->ids.size()));
-        if (!wake_sent_) {
-          w->set_full(true);
-          add_ids(wake_latest_->ids, w->mutable_ids());
-        } else {
-          difference(wake_latest_->ids, wake_sent_->ids, w->mutable_woken());
-          difference(wake_sent_->ids, wake_latest_->ids, w->mutable_slept());
-        }
+        wake_to_proto(*wake_latest_, wake_sent_.get(), write_.mutable_wake());
         wake_sent_ = wake_latest_;
         start_write_locked();
       }

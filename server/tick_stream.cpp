@@ -366,16 +366,7 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
       now = entry_->wake;
     }
     if (!now || now == wake_sent_ || (wake_sent_ && now->ids == wake_sent_->ids)) return;
-    v1::WakeList* w = write_.mutable_wake();
-    w->set_version(now->version);
-    w->set_size(static_cast<std::uint32_t>(now->ids.size()));
-    if (!wake_sent_) {
-      w->set_full(true);
-      add_ids(now->ids, w->mutable_ids());
-    } else {
-      difference(now->ids, wake_sent_->ids, w->mutable_woken());
-      difference(wake_sent_->ids, now->ids, w->mutable_slept());
-    }
+    wake_to_proto(*now, wake_sent_.get(), write_.mutable_wake());
     wake_sent_ = std::move(now);
   }
 
