@@ -161,13 +161,15 @@ int run_simulate(const SimulateArgs& args);
 struct LoadgenArgs {
   NetArgs net;
   std::string scene;
-  int viewers = 1;          ///< Concurrent View streams.
-  double rate = 30.0;       ///< Frames per second per viewer, Hz.
+  int viewers = 1;          ///< Concurrent View streams, or viewers in each tick (--tick).
+  double rate = 30.0;       ///< Frames per second per viewer, Hz (ticks per second with --tick).
   double duration = 10.0;   ///< Seconds of sending.
   std::string frames;       ///< Cameras to loop over; empty: an orbit in the scene's bounds.
   bool delta = false;
   std::string json;         ///< Report as JSON to this file; empty: none.
   int connections = 0;      ///< TCP connections; 0: one per 100 viewers.
+  bool tick = false;        ///< One Tick stream carrying every viewer, instead of View streams.
+  std::string metrics;      ///< The server's metrics address (HOST:PORT): its CPU per answer; empty: none.
   bool quiet = false;
 };
 

@@ -23,7 +23,6 @@ bool read_file(const std::string& path, std::string* text, FormatError* error);
 /// Whether a frames line is blank (only spaces, tabs or '\r'): skipped, but counted.
 bool blank(const std::string& line);
 
-/// Nearest-rank percentile of sorted values, p in (0, 100].
 /// Reads a frames file (JSON Lines) whole: its frames, and each one's line
 /// in the file (`lines`, may be null). On error reports it (file:line) and
 /// returns false; a file without a frame is an error saying that `what`
@@ -31,6 +30,7 @@ bool blank(const std::string& line);
 bool read_frames(const std::string& path, const char* what, std::vector<FrameInput>* frames,
                  std::vector<int>* lines = nullptr);
 
+/// Nearest-rank percentile of sorted values, p in (0, 100].
 double percentile(const std::vector<double>& sorted, double p);
 
 /// Mean, median and 99th percentile of per-frame values (0 when empty).

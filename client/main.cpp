@@ -333,10 +333,10 @@ int run(int argc, char** argv) {
   loadgen_cmd->add_option("--scene", gen_load.scene, "Scene id on the server")
       ->required()
       ->type_name("ID");
-  loadgen_cmd->add_option("--viewers", gen_load.viewers, "Concurrent View streams")
+  loadgen_cmd->add_option("--viewers", gen_load.viewers, "Concurrent View streams (with --tick: viewers in each tick)")
       ->required()
       ->type_name("N");
-  loadgen_cmd->add_option("--rate", gen_load.rate, "Frames per second per viewer")
+  loadgen_cmd->add_option("--rate", gen_load.rate, "Frames per second per viewer (with --tick: ticks per second)")
       ->required()
       ->type_name("HZ");
   loadgen_cmd->add_option("--duration", gen_load.duration, "Seconds of sending")
@@ -353,6 +353,13 @@ int run(int argc, char** argv) {
                           "TCP connections the streams are spread over (default: one per 100 "
                           "viewers)")
       ->type_name("N");
+  loadgen_cmd->add_flag("--tick", gen_load.tick,
+                        "One Tick stream whose every request carries all viewers' cameras (a game "
+                        "server's tick), instead of a View stream per viewer");
+  loadgen_cmd->add_option("--metrics", gen_load.metrics,
+                          "The server's metrics address (its --metrics): report its CPU time per "
+                          "answer, and the engine's part of it")
+      ->type_name("HOST:PORT");
   loadgen_cmd->add_flag("-q,--quiet", gen_load.quiet, "No progress line on stderr");
   loadgen_cmd->footer(
       "Latency: from sending a frame to receiving the answer carrying its number;\n"
@@ -360,7 +367,11 @@ int run(int argc, char** argv) {
       "first answer: from a stream's first send to its first answer; answer gaps:\n"
       "between two answers of one stream (the first gap is the first answer's wait).\n"
       "A tick that finds the viewer's previous write still outstanding is skipped\n"
-      "(\"send skipped\"). Report on stdout; exit 2 if a stream ended with an error.");
+      "(\"send skipped\"). With --tick, latency is a whole tick's, answers count one\n"
+      "per viewer answered, and the server's skips are ticks replaced by newer ones.\n"
+      "With --metrics, the server's CPU seconds (process_cpu_seconds_total) and the\n"
+      "engine's (voxvis_frame_engine_seconds) over the run, per answer it counted for\n"
+      "the scene. Report on stdout; exit 2 if a stream ended with an error.");
 
   try {
     app.parse(argc, argv);

@@ -7,6 +7,7 @@ VOXVIS_PACKAGES=(
   libglm-dev nlohmann-json3-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc grpc-proto prometheus-cpp-dev
+  libcurl4-openssl-dev
   openssl
   libegl-dev libopengl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri
   gnuplot-nox

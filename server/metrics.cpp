@@ -8,11 +8,15 @@
 #include <utility>
 #include <vector>
 
+#include <sys/resource.h>
+
+#include <prometheus/collectable.h>
 #include <prometheus/counter.h>
 #include <prometheus/exposer.h>
 #include <prometheus/family.h>
 #include <prometheus/gauge.h>
 #include <prometheus/histogram.h>
+#include <prometheus/metric_family.h>
 #include <prometheus/registry.h>
 
 namespace voxvis::server {
@@ -149,6 +153,31 @@ struct State {
   Families families{*registry};
 };
 
+/// The process's own CPU time and peak memory, read at each scrape
+/// (getrusage), under the names Prometheus' client libraries use for them.
+/// CPU seconds over answers served is the server's cost per answer
+/// (`voxvis loadgen --metrics` reports it; docs/performance.md).
+class ProcessCollector final : public prometheus::Collectable {
+ public:
+  std::vector<prometheus::MetricFamily> Collect() const override {
+    rusage usage{};
+    if (getrusage(RUSAGE_SELF, &usage) != 0) return {};
+    const auto seconds = [](const timeval& tv) {
+      return static_cast<double>(tv.tv_sec) + 1e-6 * static_cast<double>(tv.tv_usec);
+    };
+    std::vector<prometheus::MetricFamily> out(2);
+    out[0].name = "process_cpu_seconds_total";
+    out[0].help = "Total user and system CPU time spent in seconds";
+    out[0].type = prometheus::MetricType::Counter;
+    out[0].metric.emplace_back().counter.value = seconds(usage.ru_utime) + seconds(usage.ru_stime);
+    out[1].name = "process_max_resident_memory_bytes";
+    out[1].help = "Peak resident set size in bytes";
+    out[1].type = prometheus::MetricType::Gauge;
+    out[1].metric.emplace_back().gauge.value = 1024.0 * static_cast<double>(usage.ru_maxrss);  // KiB on Linux.
+    return out;
+  }
+};
+
 class PrometheusSceneMetrics final : public SceneMetrics {
  public:
   PrometheusSceneMetrics(std::shared_ptr<State> state, const std::string& scene_id)
@@ -277,6 +306,7 @@ class PrometheusMetrics final : public Metrics {
     port_ = ports.empty() ? 0 : ports.front();
     scenes_ = &state_->families.scenes.Add({});
     exposer_->RegisterCollectable(state_->registry);
+    exposer_->RegisterCollectable(process_);
   }
 
   std::shared_ptr<SceneMetrics> scene(const std::string& scene_id) override {
@@ -310,7 +340,8 @@ class PrometheusMetrics final : public Metrics {
 
  private:
   std::shared_ptr<State> state_ = std::make_shared<State>();
-  // Declared after state_ so that it is destroyed first: no scrape can run
+  std::shared_ptr<ProcessCollector> process_ = std::make_shared<ProcessCollector>();
+  // Declared after state_ and process_ so that it is destroyed first: no scrape can run
   // while the families go away.
   std::unique_ptr<prometheus::Exposer> exposer_;
   int port_ = 0;

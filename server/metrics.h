@@ -19,6 +19,8 @@
 //   voxvis_verify_dropped_total{scene}        counter: frames sampled but not checked
 //   voxvis_scenes                             gauge
 //   voxvis_errors_total{method, code}         counter: calls ended with a non-OK status
+//   process_cpu_seconds_total                 counter: the server's user + system CPU time
+//   process_max_resident_memory_bytes         gauge: peak resident set size
 #pragma once
 
 #include <memory>

@@ -356,5 +356,57 @@ TEST(ServerCli, LoadgenManyViewersOfOneScene) {
   EXPECT_EQ(server.terminate(), 0);
 }
 
+TEST(ServerCli, LoadgenTicksReportAnswersAndTheServersCpu) {
+  const std::string examples = std::string(VOXVIS_SOURCE_DIR) + "/examples/paper";
+  ServerProcess server;
+  server.extra_args() = {"--scene", "paper=" + examples + "/scene.json", "--metrics", "127.0.0.1:0"};
+  ASSERT_TRUE(server.start());
+  const std::string metrics = "127.0.0.1:" + std::to_string(server.metrics_port());
+  const std::string report = server.path("ticks.json");
+  const ProcessResult r =
+      run_program({VOXVIS_CLI, "loadgen", "--server", server.address(), "--scene", "paper", "--tick",
+                   "--frames", examples + "/frames.jsonl", "--viewers", "5", "--rate", "60", "--duration", "2",
+                   "--delta", "--metrics", metrics, "--json", report, "-q"},
+                  server.dir());
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("5 viewers a tick"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("server CPU"), std::string::npos) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(slurp(report), nullptr, false);
+  ASSERT_FALSE(j.is_discarded());
+  EXPECT_EQ(j.at("mode"), "tick");
+  EXPECT_TRUE(j.at("errors").empty()) << j.dump();
+  EXPECT_EQ(j.at("answer_errors"), 0);
+  EXPECT_EQ(j.at("streams_answered"), 1);
+  // Each tick answered answers all five viewers; sent ticks were answered or
+  // shed by the server, never lost.
+  const auto ticks = j.at("ticks_answered").get<std::uint64_t>();
+  EXPECT_GT(ticks, 10u);
+  EXPECT_EQ(j.at("frames").get<std::uint64_t>(), 5 * ticks);
+  EXPECT_EQ(ticks + j.at("server_skipped").get<std::uint64_t>(), j.at("ticks_sent").get<std::uint64_t>());
+  EXPECT_GT(j.at("answers_per_s").get<double>(), 0.0);
+  // The server counted the same answers (it had no other client), and spent
+  // CPU on them, part of it in the engine.
+  EXPECT_EQ(j.at("server_answers").get<double>(), j.at("frames").get<double>());
+  EXPECT_GT(j.at("server_cpu_s_per_answer").get<double>(), 0.0);
+  EXPECT_GT(j.at("server_engine_s_per_answer").get<double>(), 0.0);
+  EXPECT_NEAR(j.at("server_overhead_s_per_answer").get<double>(),
+              j.at("server_cpu_s_per_answer").get<double>() - j.at("server_engine_s_per_answer").get<double>(),
+              1e-12);
+
+  // Bad arguments fail before the run, naming the flag.
+  const ProcessResult many = run_program({VOXVIS_CLI, "loadgen", "--server", server.address(), "--scene", "paper",
+                                          "--tick", "--viewers", "1025", "--rate", "30", "--duration", "1"},
+                                         server.dir());
+  EXPECT_EQ(many.status, 2);
+  EXPECT_NE(many.err.find("--viewers: with --tick, at most 1024"), std::string::npos) << many.err;
+  const ProcessResult no_metrics =
+      run_program({VOXVIS_CLI, "loadgen", "--server", server.address(), "--scene", "paper", "--tick", "--viewers",
+                   "2", "--rate", "30", "--duration", "1", "--metrics", server.address()},
+                  server.dir());
+  EXPECT_EQ(no_metrics.status, 2);
+  EXPECT_NE(no_metrics.err.find("--metrics"), std::string::npos) << no_metrics.err;
+  EXPECT_EQ(server.terminate(), 0);
+}
+
 }  // namespace
 }  // namespace voxvis::servertest
