@@ -40,7 +40,7 @@ struct FrameRun {
   ViewerId viewer;
   double t;
   FrameStats st{};
-  std::vector<std::uint32_t> wake;  ///< Slots.
+  std::vector<std::uint32_t>& wake;  ///< Slots; the Scratch's buffer (w.wake).
 };
 
 /// Phase 1: the clock, under `book`; whether a TBV has expired.
@@ -57,6 +57,9 @@ Status begin(FrameRun& f, Scene::Clock clock, bool* expired) {
   if (!std::isfinite(s.first_frame_time)) s.first_frame_time = f.t;
   f.st = s.pending;
   s.pending = FrameStats{};
+  // The scene takes this Scratch's emptied buffer in exchange: both keep
+  // their capacity, so a frame allocates nothing here.
+  f.wake.clear();
   f.wake.swap(s.pending_wake);
   // Only an expired TBV makes a frame wait: it no longer bounds its object.
   // The queue is conservative as it stands (queued TBVs still bound their
@@ -243,7 +246,10 @@ Status commit(FrameRun& f, FrameResult* out) {
   };
   for (std::uint32_t slot : f.w.deferred) queue_reveal(slot);
   f.w.deferred.clear();
-  std::vector<std::uint32_t> pvs = f.w.pvs;
+  // Sorted in the Scratch's buffer, which then trades places with the
+  // viewer's last PVS (capacity goes round, nothing is allocated).
+  std::vector<std::uint32_t>& pvs = f.w.sorted_pvs;
+  pvs.assign(f.w.pvs.begin(), f.w.pvs.end());
   std::sort(pvs.begin(), pvs.end());
   // Objects under a TBV put in the PVS (beyond the grid, or the far-eye
   // fallback): this viewer may see them, so they are revealed.
@@ -254,11 +260,13 @@ Status commit(FrameRun& f, FrameResult* out) {
   out->t = f.t;
   out->pvs.clear();
   out->wake.clear();
+  out->pvs.reserve(pvs.size());
   for (std::uint32_t slot : pvs) {
     out->pvs.push_back(s.objs[slot].id);
     if (s.objs[slot].dynamic) f.wake.push_back(slot);
   }
   vs.last_pvs.swap(pvs);
+  out->wake.reserve(f.wake.size());
   for (std::uint32_t slot : f.wake) out->wake.push_back(s.objs[slot].id);
   std::sort(out->pvs.begin(), out->pvs.end());
   std::sort(out->wake.begin(), out->wake.end());
@@ -301,7 +309,7 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
   } in_flight{s.frames_in_flight};
   Scratch::Impl& w = scratch.impl();
   w.begin(s.objs.size(), s.opaque_boxes.size(), s.bricks.size(), s.cell_base[static_cast<std::size_t>(s.pyr.levels)]);
-  FrameRun f{s, w, detail::make_world_frustum(camera), viewer, t, FrameStats{}, {}};
+  FrameRun f{s, w, detail::make_world_frustum(camera), viewer, t, FrameStats{}, w.wake};
   std::uint64_t tick_split[2] = {0, 0};  // Traversal; beyond the grid and retest.
   bool expired = false;
   if (Status st = begin(f, clock, &expired); !st) return st;

@@ -892,14 +892,19 @@ std::vector<Move> Scene::dynamic_centers(double* time, std::uint64_t* epoch) con
 }
 
 std::vector<ObjectId> Scene::wake_set() const {
+  std::vector<ObjectId> ids;
+  wake_set(&ids);
+  return ids;
+}
+
+void Scene::wake_set(std::vector<ObjectId>* ids) const {
   std::shared_lock<detail::GridMutex> lock(impl_->mu);
   std::lock_guard<std::mutex> book(impl_->book);
-  std::vector<ObjectId> ids;
+  ids->clear();
   // A queued reveal is a wake already reported by its frame.
   for (const Obj& o : impl_->objs)
-    if (o.dynamic && (!o.under_tbv || o.reveal_queued)) ids.push_back(o.id);
-  std::sort(ids.begin(), ids.end());
-  return ids;
+    if (o.dynamic && (!o.under_tbv || o.reveal_queued)) ids->push_back(o.id);
+  std::sort(ids->begin(), ids->end());
 }
 
 }  // namespace voxvis

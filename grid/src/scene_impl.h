@@ -170,6 +170,12 @@ struct Scratch::Impl {
 
   // Reused buffers.
   std::vector<std::uint32_t> pvs;
+  /// The frame's PVS slots sorted (Scene::frame, phase 3); traded with the
+  /// viewer's last PVS.
+  std::vector<std::uint32_t> sorted_pvs;
+  /// Slots of the frame's wake list (Scene::frame); traded with the scene's
+  /// pending wake.
+  std::vector<std::uint32_t> wake;
   std::vector<std::uint32_t> reveals;
   /// TBVs the traversal reached, revealed after it (Scene::frame, phase 3).
   std::vector<std::uint32_t> deferred;

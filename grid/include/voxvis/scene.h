@@ -262,6 +262,8 @@ class Scene {
   /// Dynamic objects whose positions the engine currently uses: those in any
   /// viewer's last PVS and those not yet under a TBV. Ascending ids.
   std::vector<ObjectId> wake_set() const;
+  /// The same into `ids` (cleared first), reusing its memory.
+  void wake_set(std::vector<ObjectId>* ids) const;
   /// Changes whenever wake_set() may have changed (an object entered or left
   /// a TBV), so that callers recompute the set only then.
   std::uint64_t wake_epoch() const;
