@@ -46,9 +46,19 @@ WorkerPool::~WorkerPool() {
 void WorkerPool::submit(const std::string& client, Job job) {
   {
     std::lock_guard<std::mutex> lock(mu_);
-    std::deque<Job>& q = queues_[client];
-    if (q.empty()) turns_.push_back(client);
-    q.push_back(std::move(job));
+    auto it = queues_.find(client);
+    if (it == queues_.end()) {
+      if (queues_.size() >= kKeptQueues) {
+        std::erase_if(queues_, [](const auto& kv) { return !kv.second.in_turns; });
+      }
+      it = queues_.emplace(client, ClientQueue{}).first;
+    }
+    ClientQueue& q = it->second;
+    q.jobs.push_back(std::move(job));
+    if (!q.in_turns) {
+      q.in_turns = true;
+      turns_.push_back(&q);
+    }
     ++queued_;
   }
   cv_.notify_one();
@@ -73,15 +83,14 @@ void WorkerPool::run(bool background) {
     if (queued_ == 0) return;  // stop_ and nothing left to run.
     // The client whose turn it is gives one job and goes to the back of the
     // line if it has more.
-    std::string client = std::move(turns_.front());
+    ClientQueue* q = turns_.front();
     turns_.pop_front();
-    auto it = queues_.find(client);
-    Job job = std::move(it->second.front());
-    it->second.pop_front();
-    if (it->second.empty()) {
-      queues_.erase(it);
+    Job job = std::move(q->jobs.front());
+    q->jobs.pop_front();
+    if (q->jobs.empty()) {
+      q->in_turns = false;
     } else {
-      turns_.push_back(std::move(client));
+      turns_.push_back(q);
     }
     --queued_;
     ++running_;

@@ -25,7 +25,6 @@
 #include <condition_variable>
 #include <cstddef>
 #include <cstdint>
-#include <deque>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -45,7 +44,42 @@ namespace voxvis::server {
 /// less polite.
 void lower_this_thread_priority();
 
+/// A job. Lambdas of at most two pointers' worth of trivially copyable
+/// captures (`[this, i]`) fit std::function's own storage: submitting one
+/// allocates nothing.
 using Job = std::function<void(Scratch&)>;
+
+/// A FIFO queue in one growing ring buffer: unlike std::deque, which frees
+/// and allocates a block every few elements as it is cycled through, it
+/// allocates only when it holds more than it ever has.
+template <class T>
+class RingQueue {
+ public:
+  bool empty() const { return size_ == 0; }
+  std::size_t size() const { return size_; }
+  T& front() { return slots_[head_]; }
+  void push_back(T value) {
+    if (size_ == slots_.size()) grow();
+    slots_[(head_ + size_) % slots_.size()] = std::move(value);
+    ++size_;
+  }
+  void pop_front() {
+    slots_[head_] = T{};  // Releases what the element holds.
+    head_ = (head_ + 1) % slots_.size();
+    --size_;
+  }
+
+ private:
+  void grow() {
+    std::vector<T> bigger(slots_.empty() ? 8 : 2 * slots_.size());
+    for (std::size_t i = 0; i < size_; ++i) bigger[i] = std::move(slots_[(head_ + i) % slots_.size()]);
+    slots_.swap(bigger);
+    head_ = 0;
+  }
+  std::vector<T> slots_;
+  std::size_t head_ = 0;
+  std::size_t size_ = 0;
+};
 /// Told the text of an exception a job let escape.
 using JobErrorHandler = std::function<void(const std::string&)>;
 
@@ -78,11 +112,20 @@ class WorkerPool {
  private:
   void run(bool background);
 
+  /// One client's jobs. Kept when empty, so that a client whose queue
+  /// empties and fills again each frame allocates nothing; the empty ones are
+  /// dropped when there are more than kKeptQueues.
+  struct ClientQueue {
+    RingQueue<Job> jobs;
+    bool in_turns = false;
+  };
+  static constexpr std::size_t kKeptQueues = 256;
+
   mutable std::mutex mu_;
   std::condition_variable cv_;       // Guarded by mu_: new job or stop.
   std::condition_variable idle_cv_;  // Guarded by mu_: queues empty and no job running.
-  std::unordered_map<std::string, std::deque<Job>> queues_;  // Guarded by mu_: non-empty only.
-  std::deque<std::string> turns_;    // Guarded by mu_: each key of queues_ once, next first.
+  std::unordered_map<std::string, ClientQueue> queues_;  // Guarded by mu_ (nodes never move).
+  RingQueue<ClientQueue*> turns_;    // Guarded by mu_: each queue with jobs once, next first.
   std::size_t queued_ = 0;           // Guarded by mu_.
   unsigned running_ = 0;             // Guarded by mu_.
   bool stop_ = false;                // Guarded by mu_.
@@ -108,7 +151,7 @@ class Strand : public std::enable_shared_from_this<Strand> {
   WorkerPool& pool_;
   const std::string client_;
   std::mutex mu_;
-  std::deque<Job> queue_;  // Guarded by mu_.
+  RingQueue<Job> queue_;  // Guarded by mu_.
   bool scheduled_ = false; // Guarded by mu_: a run_some is submitted or running.
 };
 

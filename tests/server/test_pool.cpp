@@ -187,5 +187,67 @@ TEST(WorkerPool, OneClientsJobsRunInOrder) {
   for (int i = 0; i < 500; ++i) EXPECT_EQ(order[static_cast<std::size_t>(i)], i);
 }
 
+// Clients come and go (more than the pool keeps queues for): every job
+// runs once, each client's in order, and turns still alternate.
+TEST(WorkerPool, ManyClientsComingAndGoingKeepOrderAndTurns) {
+  WorkerPool pool(1);
+  std::mutex mu;
+  std::vector<std::pair<int, int>> ran;  // (client, job), guarded by mu.
+  std::atomic<bool> release{false}, started{false};
+  pool.submit("hold", [&](Scratch&) {
+    started.store(true);
+    while (!release.load()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  });
+  while (!started.load()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  constexpr int kClients = 700, kJobs = 3;  // Beyond kKeptQueues (256).
+  for (int j = 0; j < kJobs; ++j)
+    for (int c = 0; c < kClients; ++c)
+      pool.submit("client-" + std::to_string(c), [&, c, j](Scratch&) {
+        std::lock_guard<std::mutex> lock(mu);
+        ran.emplace_back(c, j);
+      });
+  release.store(true);
+  pool.drain();
+  ASSERT_EQ(ran.size(), static_cast<std::size_t>(kClients * kJobs));
+  // One turn each, in order of arrival, round after round.
+  for (std::size_t i = 0; i < ran.size(); ++i) {
+    EXPECT_EQ(ran[i].first, static_cast<int>(i % kClients)) << i;
+    EXPECT_EQ(ran[i].second, static_cast<int>(i / kClients)) << i;
+  }
+  // Later, with every queue empty, new clients still run (the empty queues
+  // are dropped to make room) and old ones too.
+  ran.clear();
+  for (int c = 0; c < 2 * kClients; ++c)
+    pool.submit("later-" + std::to_string(c), [&, c](Scratch&) {
+      std::lock_guard<std::mutex> lock(mu);
+      ran.emplace_back(c, 0);
+    });
+  pool.submit("client-0", [&](Scratch&) {
+    std::lock_guard<std::mutex> lock(mu);
+    ran.emplace_back(-1, 0);
+  });
+  pool.drain();
+  EXPECT_EQ(ran.size(), static_cast<std::size_t>(2 * kClients + 1));
+}
+
+// The ring keeps FIFO order across growth and wrap-around.
+TEST(RingQueue, KeepsOrderAcrossGrowthAndWrapAround) {
+  RingQueue<int> q;
+  int pushed = 0, popped = 0;
+  for (int round = 0; round < 50; ++round) {
+    for (int i = 0; i < round % 13 + 1; ++i) q.push_back(pushed++);
+    for (int i = 0; i < round % 7 + 1 && !q.empty(); ++i) {
+      ASSERT_EQ(q.front(), popped++);
+      q.pop_front();
+    }
+    ASSERT_EQ(q.size(), static_cast<std::size_t>(pushed - popped));
+  }
+  while (!q.empty()) {
+    ASSERT_EQ(q.front(), popped++);
+    q.pop_front();
+  }
+  EXPECT_EQ(popped, pushed);
+}
+
 }  // namespace
 }  // namespace voxvis::server
