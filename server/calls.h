@@ -15,10 +15,13 @@
 
 #include <atomic>
 #include <cstdint>
+#include <algorithm>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
+#include <google/protobuf/arena.h>
 #include <google/protobuf/repeated_field.h>
 #include <grpcpp/grpcpp.h>
 
@@ -45,6 +48,51 @@ grpc::Status shutting_down_status();
 bool parse_message(const grpc::ByteBuffer& in, google::protobuf::MessageLite* out);
 /// Serializes a response into `out`.
 grpc::Status serialize_message(const google::protobuf::MessageLite& m, grpc::ByteBuffer* out);
+
+/// A message on an arena that is emptied, not freed, between uses. Clear()
+/// of a message on no arena deletes its sub-messages (a camera and its
+/// vectors, an answer's id sets and stats), so a stream reusing one plain
+/// message still allocated several times an answer. fresh() drops the
+/// previous message wholesale and returns a new one on the arena's first
+/// block, which grows (on the next fresh()) to twice the most a message used:
+/// a stream's steady traffic allocates nothing. Call fresh() on the thread
+/// that then fills the message: the arena's first block serves that thread.
+template <class M>
+class ReusedMessage {
+ public:
+  ReusedMessage() { make(kFirstBlock); }
+  ReusedMessage(const ReusedMessage&) = delete;
+  ReusedMessage& operator=(const ReusedMessage&) = delete;
+
+  M& get() { return *message_; }
+  const M& get() const { return *message_; }
+  M& fresh() {
+    const std::uint64_t used = arena_->SpaceAllocated();
+    if (used > block_size_) {
+      make(static_cast<std::size_t>(std::min<std::uint64_t>(2 * used, kMostBlock)));
+    } else {
+      arena_->Reset();
+      message_ = google::protobuf::Arena::CreateMessage<M>(arena_.get());
+    }
+    return *message_;
+  }
+
+ private:
+  static constexpr std::size_t kFirstBlock = 2048;
+  static constexpr std::size_t kMostBlock = std::size_t{4} << 20;
+  void make(std::size_t bytes) {
+    message_ = nullptr;
+    arena_.reset();
+    block_ = std::make_unique<char[]>(bytes);
+    block_size_ = bytes;
+    arena_ = std::make_unique<google::protobuf::Arena>(block_.get(), bytes);
+    message_ = google::protobuf::Arena::CreateMessage<M>(arena_.get());
+  }
+  std::unique_ptr<char[]> block_;  // Outlives arena_ (declared first).
+  std::size_t block_size_ = 0;
+  std::unique_ptr<google::protobuf::Arena> arena_;
+  M* message_ = nullptr;
+};
 
 /// a \ b for ascending a and b, appended to `out`.
 void difference(const std::vector<ObjectId>& a, const std::vector<ObjectId>& b,

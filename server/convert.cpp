@@ -1,8 +1,9 @@
 #include "convert.h"
 
+#include <algorithm>
+
 #include <cmath>
 #include <cstdio>
-#include <unordered_set>
 
 namespace voxvis::server {
 
@@ -131,16 +132,25 @@ Status moves_from_proto(const google::protobuf::RepeatedPtrField<v1::Move>& in, 
                         std::vector<Move>* out) {
   out->clear();
   out->reserve(static_cast<std::size_t>(in.size()));
-  std::unordered_set<ObjectId> seen;
-  seen.reserve(static_cast<std::size_t>(in.size()));
+  // The first move whose id an earlier move has, by sorting (id, index) in
+  // this thread's reused buffer; field names are made only for an error, so
+  // a good batch allocates nothing beyond `out`.
+  thread_local std::vector<std::pair<ObjectId, int>> ids;
+  ids.clear();
+  for (int i = 0; i < in.size(); ++i) ids.emplace_back(in.Get(i).id(), i);
+  std::sort(ids.begin(), ids.end());
+  int twice = in.size();  // Index of the first repeated id; none when in.size().
+  for (std::size_t k = 1; k < ids.size(); ++k)
+    if (ids[k].first == ids[k - 1].first) twice = std::min(twice, ids[k].second);
+  const auto field = [&](int i, const std::string& rest) { return path + "[" + std::to_string(i) + "]." + rest; };
   for (int i = 0; i < in.size(); ++i) {
     const v1::Move& m = in.Get(i);
-    const std::string f = path + "[" + std::to_string(i) + "]";
-    if (!seen.insert(m.id()).second)
-      return Status::Error(f + ".id", "object " + std::to_string(m.id()) + " appears twice in one batch");
+    if (i == twice)
+      return Status::Error(field(i, "id"), "object " + std::to_string(m.id()) + " appears twice in one batch");
     Move mv;
     mv.id = m.id();
-    if (Status s = vec_required(m.has_center(), m.center(), f + ".center", &mv.center); !s) return s;
+    if (Status s = vec_required(m.has_center(), m.center(), "center", &mv.center); !s)
+      return Status::Error(field(i, s.field), s.message);
     out->push_back(mv);
   }
   return Status::Ok();

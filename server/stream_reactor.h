@@ -45,7 +45,7 @@ class StreamReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::Byt
   void OnReadDone(bool ok) override {
     std::lock_guard<std::mutex> lock(mu_);
     grpc::Status parsed;
-    if (ok && !parse_message(in_, &read_))
+    if (ok && !parse_message(in_, &read_.fresh()))
       parsed = malformed(Req::descriptor()->full_name(), in_.Length());
     self().on_read_locked(ok, parsed);
   }
@@ -196,7 +196,7 @@ class StreamReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::Byt
 
   /// Writes write_ (one write in flight: the caller checked writing_).
   void start_write_locked() {
-    if (grpc::Status s = serialize_message(write_, &out_); !s.ok()) {
+    if (grpc::Status s = serialize_message(write_.get(), &out_); !s.ok()) {
       stop_locked(s);
       return;
     }
@@ -215,12 +215,12 @@ class StreamReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::Byt
   bool writing_ = false, stopping_ = false, finished_ = false, done_ = false;  // Guarded by mu_.
   grpc::Status stop_status_;           // Guarded by mu_.
   int jobs_ = 0;                       // Guarded by mu_: pool jobs referencing this.
-  Req read_;                           // The last message read.
+  ReusedMessage<Req> read_;            // The last message read: read_.get().
   v1::PvsEncoding encoding_ = v1::PVS_FULL;  // Guarded by mu_: a PVS stream's, from its first message.
   bool have_number_ = false;           // Guarded by mu_: accept_sequence_locked's.
   std::uint64_t last_number_ = 0;
   double last_t_ = 0.0;
-  Resp write_;                         // The message being written.
+  ReusedMessage<Resp> write_;          // The message being written: write_.fresh() to make it.
 
  private:
   grpc::ByteBuffer in_;   // Owned by the outstanding read.

@@ -76,7 +76,7 @@ class ViewReactor final
   };
 
   grpc::Status accept_locked() {
-    const v1::ViewRequest& r = read_;
+    const v1::ViewRequest& r = read_.get();
     bool first = false;
     const grpc::Status seq = accept_sequence_locked(r.scene_id(), r.encoding(), &first, "frame", r.frame(), r.t());
     if (first) {
@@ -184,22 +184,22 @@ class ViewReactor final
 
   void write_locked() {
     Ready& r = *ready_;
-    write_.Clear();
-    write_.set_frame(r.frame);
-    write_.set_t(r.t);
-    write_.set_encoding(encoding_);
+    auto& w = write_.fresh();
+    w.set_frame(r.frame);
+    w.set_t(r.t);
+    w.set_encoding(encoding_);
     std::vector<ObjectId>& pvs = r.result.pvs;
     if (encoding_ == v1::PVS_DELTA) {
-      difference(pvs, last_sent_, write_.mutable_added());
-      difference(last_sent_, pvs, write_.mutable_removed());
+      difference(pvs, last_sent_, w.mutable_added());
+      difference(last_sent_, pvs, w.mutable_removed());
     } else {
-      add_ids(pvs, write_.mutable_pvs());
+      add_ids(pvs, w.mutable_pvs());
     }
-    add_ids(r.result.wake, write_.mutable_wake());
-    stats_to_proto(r.result.stats, write_.mutable_stats());
-    write_.set_frames_skipped(r.skipped);
+    add_ids(r.result.wake, w.mutable_wake());
+    stats_to_proto(r.result.stats, w.mutable_stats());
+    w.set_frames_skipped(r.skipped);
     const double latency = std::chrono::duration<double>(Clock::now() - r.received).count();
-    write_.set_server_us(latency * 1e6);
+    w.set_server_us(latency * 1e6);
     if (entry_->metrics) {
       entry_->metrics->frame(r.result.stats, latency);
       if (r.skipped) entry_->metrics->skipped(r.skipped);
@@ -280,7 +280,7 @@ class SimReactor final
   void on_stop_locked() {}
 
   grpc::Status accept_locked() {
-    const v1::SimulateRequest& r = read_;
+    const v1::SimulateRequest& r = read_.get();
     if (grpc::Status s = check_scene_field_locked(r.scene_id()); !s.ok()) return s;
     if (!entry_) {
       if (grpc::Status s = find_scene_locked(r.scene_id()); !s.ok()) return s;
@@ -361,13 +361,13 @@ class SimReactor final
     if (finished_) return;
     if (!writing_) {
       if (ack_) {
-        write_.Clear();
-        *write_.mutable_ack() = std::move(*ack_);
+        auto& w = write_.fresh();
+        *w.mutable_ack() = std::move(*ack_);
         ack_.reset();
         start_write_locked();
       } else if (wake_latest_ && wake_latest_ != wake_sent_ && !stopping_) {
-        write_.Clear();
-        wake_to_proto(*wake_latest_, wake_sent_.get(), write_.mutable_wake());
+        auto& w = write_.fresh();
+        wake_to_proto(*wake_latest_, wake_sent_.get(), w.mutable_wake());
         wake_sent_ = wake_latest_;
         start_write_locked();
       }

@@ -104,7 +104,7 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
   }
 
   grpc::Status accept_locked() {
-    const v1::TickRequest& r = read_;
+    const v1::TickRequest& r = read_.get();
     bool first = false;
     if (grpc::Status s = accept_sequence_locked(r.scene_id(), r.encoding(), &first, "tick", r.tick(), r.t()); !s.ok())
       return s;
@@ -125,20 +125,34 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
     p.tick = r.tick();
     p.t = r.t();
     p.received = Clock::now();
+    // Entries (and their frames' buffers) come back from earlier ticks.
+    if (!spare_entries_.empty()) {
+      p.entries = std::move(spare_entries_.back());
+      spare_entries_.pop_back();
+    }
     p.entries.resize(static_cast<std::size_t>(r.viewers_size()));
-    std::unordered_map<std::uint64_t, int> first_at;  // Viewer id -> its first entry.
     for (int i = 0; i < r.viewers_size(); ++i) {
       const v1::TickViewer& v = r.viewers(i);
       Entry& e = p.entries[static_cast<std::size_t>(i)];
       e.viewer = v.viewer();
-      const std::string f = "viewers[" + std::to_string(i) + "]";
-      if (auto [at, fresh] = first_at.emplace(v.viewer(), i); !fresh) {
-        e.error = Status::Error(f + ".viewer", "viewer " + std::to_string(v.viewer()) +
-                                                   " is given twice in one tick (first at viewers[" +
-                                                   std::to_string(at->second) + "])");
-      } else if (Status s = camera_from_proto(v.camera(), v.has_camera(), &e.camera); !s) {
-        e.error = Status::Error(f + "." + s.field, s.message);
-      }
+      e.state = nullptr;
+      e.error = Status::Ok();
+      if (Status s = camera_from_proto(v.camera(), v.has_camera(), &e.camera); !s)
+        e.error = Status::Error("viewers[" + std::to_string(i) + "]." + s.field, s.message);
+    }
+    // A viewer given twice: the later entries fail, naming the first.
+    ids_.clear();
+    for (int i = 0; i < r.viewers_size(); ++i) ids_.emplace_back(r.viewers(i).viewer(), i);
+    std::sort(ids_.begin(), ids_.end());
+    for (std::size_t k = 1; k < ids_.size(); ++k) {
+      if (ids_[k].first != ids_[k - 1].first) continue;
+      std::size_t head = k - 1;
+      while (head > 0 && ids_[head - 1].first == ids_[k].first) --head;
+      const int i = ids_[k].second;
+      p.entries[static_cast<std::size_t>(i)].error =
+          Status::Error("viewers[" + std::to_string(i) + "].viewer",
+                        "viewer " + std::to_string(ids_[k].first) + " is given twice in one tick (first at viewers[" +
+                            std::to_string(ids_[head].second) + "])");
     }
     sequence_taken_locked(r.tick(), r.t());
     for (std::uint64_t id : r.left()) left_.push_back(id);
@@ -151,7 +165,10 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
         post_moves_locked(r.t(), std::move(moves));
       }
     }
-    if (pending_) ++skipped_;
+    if (pending_) {
+      ++skipped_;
+      recycle_locked(std::move(pending_->entries));
+    }
     pending_ = std::move(p);
     return grpc::Status::OK;
   }
@@ -224,7 +241,8 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
       count_viewers_locked(-1);
     }
     left_.clear();
-    std::vector<std::size_t> run;
+    std::vector<std::size_t>& run = run_;
+    run.clear();
     for (std::size_t i = 0; i < tick_.entries.size(); ++i) {
       Entry& e = tick_.entries[i];
       if (!e.error) continue;
@@ -247,9 +265,11 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
       finish_tick_locked();
       return;
     }
+    // [this, i] fits the job's own storage: no allocation a viewer. The
+    // stream outlives its jobs (jobs_), and entry_ is fixed by now.
     for (std::size_t i : run) {
       ++jobs_;
-      svc_->pool().submit(client_, [this, entry = entry_, i](Scratch& scratch) { compute(*entry, i, scratch); });
+      svc_->pool().submit(client_, [this, i](Scratch& scratch) { compute(*entry_, i, scratch); });
     }
   }
 
@@ -314,13 +334,13 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
 
   void write_locked() {
     Ready& r = *ready_;
-    write_.Clear();
-    write_.set_tick(r.tick.tick);
-    write_.set_encoding(encoding_);
-    write_.set_ticks_skipped(r.skipped);
+    auto& w = write_.fresh();
+    w.set_tick(r.tick.tick);
+    w.set_encoding(encoding_);
+    w.set_ticks_skipped(r.skipped);
     const double latency = std::chrono::duration<double>(Clock::now() - r.tick.received).count();
     for (Entry& e : r.tick.entries) {
-      v1::TickAnswer* a = write_.add_answers();
+      v1::TickAnswer* a = w.add_answers();
       a->set_viewer(e.viewer);
       if (!e.error) {
         a->mutable_error()->set_field(e.error.field);
@@ -343,17 +363,18 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
       ids_to_proto(e.result.wake, a->mutable_wake());
       stats_to_proto(e.result.stats, a->mutable_stats());
       if (entry_->metrics) entry_->metrics->frame(e.result.stats, latency);
-      e.state->last_sent = std::move(pvs);
+      e.state->last_sent.swap(pvs);  // The entry keeps the other buffer for a later frame.
     }
     if (entry_->metrics && r.skipped) entry_->metrics->skipped(r.skipped);
-    write_.set_moves_applied(moves_applied_);
+    w.set_moves_applied(moves_applied_);
     moves_applied_ = 0;
     std::sort(too_fast_.begin(), too_fast_.end());
     too_fast_.erase(std::unique(too_fast_.begin(), too_fast_.end()), too_fast_.end());
-    add_ids(too_fast_, write_.mutable_too_fast());
+    add_ids(too_fast_, w.mutable_too_fast());
     too_fast_.clear();
     write_wake_locked();
-    write_.set_server_us(latency * 1e6);
+    w.set_server_us(latency * 1e6);
+    recycle_locked(std::move(r.tick.entries));
     ready_.reset();
     start_write_locked();
   }
@@ -366,8 +387,14 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
       now = entry_->wake;
     }
     if (!now || now == wake_sent_ || (wake_sent_ && now->ids == wake_sent_->ids)) return;
-    wake_to_proto(*now, wake_sent_.get(), write_.mutable_wake());
+    wake_to_proto(*now, wake_sent_.get(), write_.get().mutable_wake());
     wake_sent_ = std::move(now);
+  }
+
+  /// Keeps a tick's entries for a later tick (two lists at most: the one
+  /// computing and the one pending are the others alive).
+  void recycle_locked(std::vector<Entry>&& entries) {
+    if (spare_entries_.size() < 2) spare_entries_.push_back(std::move(entries));
   }
 
   void on_release() {
@@ -394,6 +421,9 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
   std::optional<Ready> ready_;      // Guarded by mu_.
   std::unordered_map<std::uint64_t, ViewerState> viewers_;  // See the top of this file.
   std::vector<ObjectId> scratch_;   // Guarded by mu_: write_locked's working memory.
+  std::vector<std::pair<std::uint64_t, int>> ids_;  // Guarded by mu_: accept_locked's.
+  std::vector<std::size_t> run_;    // Guarded by mu_: start_tick_locked's.
+  std::vector<std::vector<Entry>> spare_entries_;  // Guarded by mu_: see recycle_locked.
   std::shared_ptr<const WakeSnapshot> wake_sent_;  // Guarded by mu_.
 };
 

@@ -147,5 +147,37 @@ TEST(Convert, MovesChecked) {
   EXPECT_EQ(moves_from_proto(b, &moves).field, "batch.moves[1].center");
 }
 
+// The first offending move is named, whichever check it fails: ids are
+// compared across the whole batch, centres move by move.
+TEST(Convert, MovesNameTheFirstOffender) {
+  const auto batch = [](std::vector<std::pair<ObjectId, double>> moves) {
+    v1::MoveBatch b;
+    for (const auto& [id, x] : moves) {
+      v1::Move* m = b.add_moves();
+      m->set_id(id);
+      set(m->mutable_center(), x, 0, 0);
+    }
+    return b;
+  };
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  std::vector<Move> moves;
+  // 7 repeats at 2 and 4, 3 at 5: the first repeat is at 2.
+  Status s = moves_from_proto(batch({{7, 0}, {3, 0}, {7, 0}, {9, 0}, {7, 0}, {3, 0}}), &moves);
+  EXPECT_EQ(s.field, "batch.moves[2].id");
+  EXPECT_NE(s.message.find("object 7 appears twice"), std::string::npos) << s.message;
+  EXPECT_EQ(moves_from_proto(batch({{5, 0}, {3, 0}, {5, 0}, {3, 0}}), &moves).field, "batch.moves[2].id");
+  EXPECT_EQ(moves_from_proto(batch({{5, 0}, {3, 0}, {6, 0}, {3, 0}}), &moves).field, "batch.moves[3].id");
+  // A bad centre before the repeat is named first, and after it not.
+  EXPECT_EQ(moves_from_proto(batch({{1, 0}, {2, nan}, {1, 0}}), &moves).field, "batch.moves[1].center");
+  EXPECT_EQ(moves_from_proto(batch({{1, 0}, {1, 0}, {2, nan}}), &moves).field, "batch.moves[1].id");
+  // Many distinct ids pass, in order.
+  std::vector<std::pair<ObjectId, double>> many;
+  for (ObjectId id = 1000; id > 0; --id) many.emplace_back(id, static_cast<double>(id));
+  ASSERT_TRUE(moves_from_proto(batch(many), &moves));
+  ASSERT_EQ(moves.size(), 1000u);
+  EXPECT_EQ(moves.front().id, 1000u);
+  EXPECT_EQ(moves.back().center, Vec3(1, 0, 0));
+}
+
 }  // namespace
 }  // namespace voxvis::server
