@@ -7,10 +7,10 @@ Each viewer's answers are written as the lines `voxvis replay` writes.
 See README.md: the stubs are generated from proto/voxvis/v1/voxvis.proto.
 """
 import argparse
+import asyncio
 import json
 import math
 import os
-import queue
 import sys
 import time
 
@@ -174,20 +174,19 @@ class ProtocolError(Exception):
 
 
 class TickSession:
-    """The Tick stream, lock-step: tick() sends one tick and waits for its
+    """The Tick stream, lock-step: tick() writes one tick and reads its
     answer. Keeps each viewer's PVS (the base of its deltas) and the scene's
-    wake list. Failed calls raise grpc.RpcError."""
+    wake list. A failed call raises grpc.aio.AioRpcError (a grpc.RpcError)."""
 
     def __init__(self, stub, scene, delta, metadata):
         self.scene, self.first = scene, True
         self.encoding = pb.PVS_DELTA if delta else pb.PVS_FULL
-        self.requests = queue.SimpleQueue()  # The call sends what is put here; None ends it.
-        self.answers = stub.Tick(iter(self.requests.get, None), metadata=metadata)
-        self.pvs = {}                       # Viewer id -> its PVS, ascending.
-        self.wake = idset.WakeList()        # The scene's: simulate these objects.
+        self.call = stub.Tick(metadata=metadata)
+        self.pvs = {}                 # Viewer id -> its PVS, ascending.
+        self.wake = idset.WakeList()  # The scene's: simulate these objects.
         self.forms = {"gaps": 0, "bits": 0, "empty": 0}
 
-    def tick(self, number, t, moves, cameras):
+    async def tick(self, number, t, moves, cameras):
         """Sends tick `number` at time t with its moves (a simulation token)
         and {viewer id: camera}; returns [(viewer id, TickAnswer, PVS, wake)]
         in the cameras' order (PVS and wake None for a refused viewer)."""
@@ -196,16 +195,15 @@ class TickSession:
             request.scene_id, request.encoding, self.first = self.scene, self.encoding, False
         for viewer, cam in cameras.items():
             request.viewers.add(viewer=viewer, camera=cam)
-        self.requests.put(request)
-        response = next(self.answers, None)
-        if response is None:
+        await self.call.write(request)
+        response = await self.call.read()
+        if response is grpc.aio.EOF:
             raise ProtocolError(f"the stream ended without answering tick {number}")
         if response.tick != number or response.encoding != self.encoding or len(response.answers) != len(cameras):
             raise ProtocolError(f"tick {number} answered by tick {response.tick}, encoding {response.encoding}, "
                                 f"{len(response.answers)} answers for {len(cameras)} viewers")
         out = []
         for i, (viewer, a) in enumerate(zip(cameras, response.answers)):
-            where = f"tick {number}: answers[{i}]"
             try:
                 if a.viewer != viewer:
                     raise ValueError(f"is for viewer {a.viewer}, asked for {viewer}")
@@ -219,7 +217,7 @@ class TickSession:
                     self.pvs[viewer] = self.decode(a.pvs)
                 out.append((viewer, a, self.pvs[viewer], self.decode(a.wake)))
             except ValueError as e:
-                raise ProtocolError(f"{where}: {e}")
+                raise ProtocolError(f"tick {number}: answers[{i}]: {e}")
         if response.HasField("wake"):  # The scene's wake list changed.
             try:
                 self.wake.apply(response.wake)
@@ -231,18 +229,14 @@ class TickSession:
         self.forms[idset.form(ids)] += 1
         return idset.decode(ids)
 
-    def close(self):
-        """Ends the stream; raises grpc.RpcError when it did not end well."""
-        self.requests.put(None)
-        for extra in self.answers:
+    async def close(self):
+        """Ends the stream; raises grpc.aio.AioRpcError when it did not end well."""
+        await self.call.done_writing()
+        if (extra := await self.call.read()) is not grpc.aio.EOF:
             raise ProtocolError(f"an answer to tick {extra.tick}, never sent")
 
-    def cancel(self):
-        self.requests.put(None)
-        self.answers.cancel()  # Nothing once the call has ended.
 
-
-def run(args):
+async def run(args):
     frames = read_frames(args.frames)
     token_file = args.token_file or os.environ.get("VOXVIS_TOKEN_FILE")
     metadata = [("authorization", "Bearer " + read_token(token_file))] if token_file else []
@@ -251,32 +245,32 @@ def run(args):
     if args.tls_ca:
         with open(args.tls_ca, "rb") as f:
             credentials = grpc.ssl_channel_credentials(root_certificates=f.read())
-        channel = grpc.secure_channel(args.server, credentials, options)
+        channel = grpc.aio.secure_channel(args.server, credentials, options)
     else:
-        channel = grpc.insecure_channel(args.server, options)
+        channel = grpc.aio.insecure_channel(args.server, options)
     outs = open_outputs(args.out, args.viewers)
 
-    session = TickSession(pb_grpc.VisibilityStub(channel), args.scene, args.delta, metadata)
     n, viewers = len(frames), args.viewers
-    start_line = [(v * n // viewers) for v in range(viewers)]  # Viewer v's first frame.
+    start_line = [v * n // viewers for v in range(viewers)]  # Viewer v's first frame.
     start, pvs_total, line = time.monotonic(), 0, frames[0][0]
     try:
-        for k, (line, frame) in enumerate(frames):
-            moves = [pb.Move(id=m["id"], center=vec3(m["center"])) for m in frame.get("moves", [])]
-            cameras = {v: camera(frames[(start_line[v] + k) % n][1]) for v in range(viewers)}
-            for viewer, answer, pvs, wake in session.tick(k, frame["t"], moves, cameras):
-                if answer.HasField("error"):
-                    raise Failure(f"{args.frames}:{frames[(start_line[viewer] + k) % n][0]}: {answer.error.field}: "
-                                  f"{answer.error.description} (viewer {viewer})")
-                outs[viewer].write(result_line(k, pvs, wake, answer.stats))
-                pvs_total += len(pvs)
-        session.close()
+        async with channel:  # Closing the channel ends its calls.
+            session = TickSession(pb_grpc.VisibilityStub(channel), args.scene, args.delta, metadata)
+            for k, (line, frame) in enumerate(frames):
+                moves = [pb.Move(id=m["id"], center=vec3(m["center"])) for m in frame.get("moves", [])]
+                cameras = {v: camera(frames[(start_line[v] + k) % n][1]) for v in range(viewers)}
+                for viewer, answer, pvs, wake in await session.tick(k, frame["t"], moves, cameras):
+                    if answer.HasField("error"):
+                        raise Failure(f"{args.frames}:{frames[(start_line[viewer] + k) % n][0]}: "
+                                      f"{answer.error.field}: {answer.error.description} (viewer {viewer})")
+                    outs[viewer].write(result_line(k, pvs, wake, answer.stats))
+                    pvs_total += len(pvs)
+            await session.close()
     except grpc.RpcError as e:
         raise Failure(describe(e, args, f"{args.frames}:{line}"))
     except ProtocolError as e:
         raise Failure(f"protocol: {e}", EXIT_PROTOCOL)
     finally:
-        session.cancel()
         for f in outs:
             f.flush()
             if f is not sys.stdout:
@@ -307,7 +301,7 @@ def main():
     if args.viewers > 1 and not args.out:
         p.error("--out: with --viewers above 1, name a directory for the viewers' files")
     try:
-        run(args)
+        asyncio.run(run(args))
     except Failure as e:
         prefix = "internal error" if e.status == EXIT_PROTOCOL else "error"
         print(f"tick_client: {prefix}: {e}", file=sys.stderr)
