@@ -242,6 +242,8 @@ async def run(args):
     metadata = [("authorization", "Bearer " + read_token(token_file))] if token_file else []
     # gRPC's Python default of 4 MiB a message is short for many large PVSs.
     options = [("grpc.max_receive_message_length", 64 << 20), ("grpc.max_send_message_length", 64 << 20)]
+    if args.tls_server_name:  # The name the certificate must hold, instead of the address's host.
+        options.append(("grpc.ssl_target_name_override", args.tls_server_name))
     if args.tls_ca:
         with open(args.tls_ca, "rb") as f:
             credentials = grpc.ssl_channel_credentials(root_certificates=f.read())
@@ -294,6 +296,7 @@ def main():
     p.add_argument("--out", help="output file (one viewer; default stdout) or directory (several)")
     p.add_argument("--token-file", help="file holding the bearer token; default $VOXVIS_TOKEN_FILE")
     p.add_argument("--tls-ca", help="PEM root certificates: TLS on")
+    p.add_argument("--tls-server-name", help="name the server's certificate holds, if not the host of --server")
     p.add_argument("-q", "--quiet", action="store_true", help="no summary on stderr")
     args = p.parse_args()
     if args.viewers < 1 or args.viewers > 1024:

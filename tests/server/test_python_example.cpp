@@ -1,9 +1,9 @@
 // examples/python/tick_client.py against the real server: its lines equal
 // those of `voxvis replay` and `voxvis tick` (apart from the stats' times)
 // in both encodings, with one viewer on a moving scene and three on a static
-// one; and its failures are one clear line and exit status 2, never a
-// traceback. Runs Debian's python3 (VOXVIS_PYTHON) with the stubs the build
-// generates (VOXVIS_PYTHON_STUBS).
+// one, and over TLS; and its failures are one clear line and exit status 2,
+// never a traceback. Runs Debian's python3 (VOXVIS_PYTHON) with the stubs
+// the build generates (VOXVIS_PYTHON_STUBS).
 #include <algorithm>
 #include <filesystem>
 #include <string>
@@ -227,6 +227,36 @@ TEST(PythonExample, TickClientFailsWithOneClearLine) {
       EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
     }
   }
+  EXPECT_EQ(server.terminate(), 0);
+}
+
+TEST(PythonExample, TickClientOverTls) {
+  ServerProcess server;
+  ASSERT_TRUE(python_ready(server));
+  const std::string cert = server.path("cert.pem"), key = server.path("key.pem");
+  ASSERT_TRUE(make_test_certificate(cert, key, server.dir()));
+  const std::string scene = server.path("wall.json"), frames = server.path("frames.jsonl");
+  spit(scene, wall_scene_json());
+  std::string text;
+  for (int i = 0; i < 10; ++i)
+    text += "{\"t\": " + std::to_string(i / 30.0) + ", \"eye\": [10, 10, " + std::to_string(1 + i * 0.1) +
+            "], \"dir\": [0, 0.1, 1], \"up\": [0, 1, 0], \"fov_y_deg\": 60, \"aspect\": 1, \"near\": 0.05, "
+            "\"far\": 1000}\n";
+  spit(frames, text);
+  server.extra_args() = {"--tls-cert", cert, "--tls-key", key, "--scene", "wall=" + scene};
+  ASSERT_TRUE(server.start());
+  const std::string replay = server.path("replay.jsonl"), out = server.path("py.jsonl");
+  ProcessResult r =
+      run_program({VOXVIS_CLI, "replay", "--scene", scene, "--frames", frames, "--out", replay, "-q"}, server.dir());
+  ASSERT_EQ(r.status, 0) << r.err;
+  r = run_python(server, {"--scene", "wall", "--frames", frames, "--out", out, "--tls-ca", cert,
+                          "--tls-server-name", "voxvis.test", "-q"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  expect_same_lines(replay, out);
+  // Without the CA (plaintext) the call fails, saying so in one line.
+  r = run_python(server, {"--scene", "wall", "--frames", frames, "-q"});
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("cannot reach server at " + server.address()), std::string::npos) << r.err;
   EXPECT_EQ(server.terminate(), 0);
 }
 
