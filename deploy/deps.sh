@@ -11,6 +11,7 @@ VOXVIS_PACKAGES=(
   openssl
   libegl-dev libopengl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri
   gnuplot-nox
+  python3-grpcio python3-protobuf
 )
 
 voxvis_ensure_deps() {
