@@ -360,11 +360,7 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
 
   /// The scene's wake list, when it changed since the last one written.
   void write_wake_locked() {
-    std::shared_ptr<const WakeSnapshot> now;
-    {
-      std::lock_guard<std::mutex> lock(entry_->wake_mu);
-      now = entry_->wake;
-    }
+    std::shared_ptr<const WakeSnapshot> now = entry_->wake_now();
     if (!now || now == wake_sent_ || (wake_sent_ && now->ids == wake_sent_->ids)) return;
     wake_to_proto(*now, wake_sent_.get(), write_.mutable_wake());
     wake_sent_ = std::move(now);
