@@ -9,6 +9,7 @@
 
 #include "calls.h"
 #include "convert.h"
+#include "frame_answer.h"
 #include "streams.h"
 
 namespace voxvis::server {
@@ -305,39 +306,60 @@ grpc::ServerUnaryReactor* Service::GetPvs(grpc::CallbackServerContext* ctx,
       finish_unary(r, "GetPvs", shutting_down_status());
       return;
     }
-    if (e->deleted.load()) {
-      finish_unary(r, "GetPvs", deleted(*e));
-      return;
-    }
-    Scene& scene = *e->scene;
     FrameResult result;
-    grpc::Status g = guarded(*e, "frame", [&] {
-      // A one-frame viewer, removed however the frame ends.
-      struct OneFrameViewer {
-        Scene& scene;
-        const ViewerId id = scene.add_viewer();
-        ~OneFrameViewer() { scene.remove_viewer(id); }
-      } viewer{scene};
-      Status s = scene.frame(viewer.id, camera, e->view_time(t, config_.max_view_lead_s), scratch, &result,
-                             Scene::Clock::Latest);
-      return s ? grpc::Status::OK : invalid(s);
-    });
-    if (!g.ok()) {
+    bool check = false;
+    if (grpc::Status g = serve_frame(*e, nullptr, camera, t, scratch, &result, &check); !g.ok()) {
       finish_unary(r, "GetPvs", g);
       return;
     }
-    e->after_frame(result);
-    add_ids(result.pvs, resp->mutable_pvs());
-    stats_to_proto(result.stats, resp->mutable_stats());
-    resp->set_t(result.t);
-    if (e->metrics)
-      e->metrics->frame(result.stats, std::chrono::duration<double>(Clock::now() - received).count());
-    const bool check = verify_sample();
+    const double latency = std::chrono::duration<double>(Clock::now() - received).count();
+    answer_frame(*e, result, v1::PVS_FULL, nullptr, latency, resp);
     const std::string peer = check ? ctx->peer() : std::string();
     finish_unary(r, "GetPvs", grpc::Status::OK);
     if (check) verify_served(*e, peer + " (GetPvs)", 0, camera, result);
   });
   return reactor;
+}
+
+grpc::Status Service::serve_frame(SceneEntry& e, FrameViewer* viewer, const Camera& camera, double t,
+                                  Scratch& scratch, FrameResult* result, bool* check) {
+  if (e.deleted.load()) return deleted(e);
+  Scene& scene = *e.scene;
+  // The scene's clock is shared: a time behind it is taken as it, one too
+  // far beyond the simulation's as its limit.
+  const double at = e.view_time(t, config_.max_view_lead_s);
+  const grpc::Status g = guarded(e, "frame", [&] {
+    auto frame = [&](ViewerId id) {
+      Status s = scene.frame(id, camera, at, scratch, result, Scene::Clock::Latest);
+      return s ? grpc::Status::OK : invalid(s);
+    };
+    if (viewer == nullptr) {
+      // A one-frame viewer, removed however the frame ends.
+      struct OneFrameViewer {
+        Scene& scene;
+        const ViewerId id = scene.add_viewer();
+        ~OneFrameViewer() { scene.remove_viewer(id); }
+      } one{scene};
+      return frame(one.id);
+    }
+    if (!viewer->added) {
+      viewer->id = scene.add_viewer();
+      viewer->added = true;
+    }
+    return frame(viewer->id);
+  });
+  if (!g.ok()) return g;
+  e.after_frame(*result);
+  if (check) *check = verify_sample();
+  return grpc::Status::OK;
+}
+
+void Service::release_viewer(const std::string& client, const std::shared_ptr<SceneEntry>& e,
+                             const FrameViewer& viewer) {
+  if (!viewer.added) return;
+  pool_.submit(client, [e, v = viewer.id](Scratch&) {
+    if (!e->deleted.load()) e->scene->remove_viewer(v);
+  });
 }
 
 grpc::Status Service::apply_batch(SceneEntry& e, double t, const std::vector<Move>& moves,

@@ -145,6 +145,20 @@ class Service final : public RawVisibilityService {
   /// (FrameResult::positions_epoch), else the frame is dropped (counted).
   void verify_served(const SceneEntry& e, const std::string& viewer, std::uint64_t frame, const Camera& camera,
                      const FrameResult& result);
+  /// Serves one frame of scene `e`: GetPvs, View and Tick alike, in a pool
+  /// job. NOT_FOUND when the scene was deleted; else the frame of `viewer`
+  /// (added by its first frame; null: a viewer for this frame only) at `t`
+  /// as the scene's clock allows (SceneEntry::view_time), run by guarded()
+  /// into `*result`, then the scene's bookkeeping (SceneEntry::after_frame).
+  /// `*check`, when given, says whether verify mode samples the frame: the
+  /// caller hands it to verify_served after its answer. The answer itself is
+  /// answer_frame's (frame_answer.h), when the call writes it.
+  grpc::Status serve_frame(SceneEntry& e, FrameViewer* viewer, const Camera& camera, double t, Scratch& scratch,
+                           FrameResult* result, bool* check = nullptr);
+  /// Removes a call's engine viewer (when its first frame added one), in a
+  /// pool job under `client`: its claims on its last PVS go with it, and the
+  /// scene's lock is a job's to take, never a reaction's.
+  void release_viewer(const std::string& client, const std::shared_ptr<SceneEntry>& e, const FrameViewer& viewer);
   /// Applies a move batch at time `t` to scene `e` (call from the scene's
   /// strand): the clock's step limit, the engine (errors on `field_prefix` +
   /// the engine's field, "batch.moves[3].id"), then the counters, the

@@ -20,7 +20,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <iterator>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -28,6 +27,7 @@
 #include <utility>
 #include <vector>
 
+#include "frame_answer.h"
 #include "stream_reactor.h"
 
 namespace voxvis::server {
@@ -55,8 +55,7 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
 
  private:
   struct ViewerState {
-    bool added = false;  // The engine's viewer exists.
-    ViewerId engine = 0;
+    FrameViewer engine;               // The engine's viewer, added by its first frame.
     std::vector<ObjectId> last_sent;  // PVS of the last answer written.
   };
   /// One viewer entry of a tick: its camera, or why it was refused.
@@ -219,7 +218,7 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
     for (std::uint64_t id : left_) {
       auto it = viewers_.find(id);
       if (it == viewers_.end()) continue;
-      if (it->second.added) remove_engine_viewer_locked(it->second.engine);
+      svc_->release_viewer(client_, entry_, it->second.engine);
       viewers_.erase(it);
       count_viewers_locked(-1);
     }
@@ -259,13 +258,6 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
     if (entry_->metrics) entry_->metrics->viewers(delta);
   }
 
-  void remove_engine_viewer_locked(ViewerId v) {
-    // Its claims on its last PVS go with it; the scene's lock is a job's to take.
-    svc_->pool().submit(client_, [entry = entry_, v](Scratch&) {
-      if (!entry->deleted.load()) entry->scene->remove_viewer(v);
-    });
-  }
-
   // Pool job: the frame of entry i of the tick being computed.
   void compute(SceneEntry& e, std::size_t i, Scratch& scratch) {
     bool stopped;
@@ -277,21 +269,8 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
     grpc::Status error;
     if (stopped) {
       svc_->count_dropped();
-    } else if (e.deleted.load()) {
-      error = deleted(e);
     } else {
-      Scene& scene = *e.scene;
-      ViewerState& v = *entry.state;
-      if (!v.added) {
-        v.engine = scene.add_viewer();
-        v.added = true;
-      }
-      const double t = e.view_time(tick_.t, svc_->config().max_view_lead_s);
-      error = svc_->guarded(e, "frame", [&] {
-        Status s = scene.frame(v.engine, entry.camera, t, scratch, &entry.result, Scene::Clock::Latest);
-        return s ? grpc::Status::OK : invalid(s);
-      });
-      if (error.ok()) e.after_frame(entry.result);
+      error = svc_->serve_frame(e, &entry.state->engine, entry.camera, tick_.t, scratch, &entry.result);
     }
     bool del;
     {
@@ -327,23 +306,7 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
         a->mutable_error()->set_description(e.error.message);
         continue;
       }
-      std::vector<ObjectId>& pvs = e.result.pvs;
-      a->set_t(e.result.t);
-      if (encoding_ == v1::PVS_DELTA) {
-        const std::vector<ObjectId>& last = e.state->last_sent;
-        scratch_.clear();
-        std::set_difference(pvs.begin(), pvs.end(), last.begin(), last.end(), std::back_inserter(scratch_));
-        ids_to_proto(scratch_, a->mutable_added());
-        scratch_.clear();
-        std::set_difference(last.begin(), last.end(), pvs.begin(), pvs.end(), std::back_inserter(scratch_));
-        ids_to_proto(scratch_, a->mutable_removed());
-      } else {
-        ids_to_proto(pvs, a->mutable_pvs());
-      }
-      ids_to_proto(e.result.wake, a->mutable_wake());
-      stats_to_proto(e.result.stats, a->mutable_stats());
-      if (entry_->metrics) entry_->metrics->frame(e.result.stats, latency);
-      e.state->last_sent = std::move(pvs);
+      answer_frame(*entry_, e.result, encoding_, &e.state->last_sent, latency, a, &scratch_);
     }
     if (entry_->metrics && r.skipped) entry_->metrics->skipped(r.skipped);
     write_.set_moves_applied(moves_applied_);
@@ -369,7 +332,7 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
   void on_release() {
     if (!entry_) return;
     for (auto& [id, v] : viewers_) {
-      if (v.added) remove_engine_viewer_locked(v.engine);
+      svc_->release_viewer(client_, entry_, v.engine);
       count_viewers_locked(-1);
     }
   }
