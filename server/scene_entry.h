@@ -50,7 +50,7 @@ struct SceneEntry {
   std::shared_ptr<Strand> strand;
   std::unique_ptr<Scene> scene;
   std::shared_ptr<SceneMetrics> metrics;
-  std::uint64_t memory_bytes = 0;  ///< Reserved in the budget: Scene::estimate's bytes and scratch.
+  std::uint64_t memory_bytes = 0;  ///< Reserved in the budget: SceneCost::served_bytes.
   GridSpec grid;  // Immutable copies for statistics.
   std::uint32_t objects = 0;
   std::uint32_t dynamic_objects = 0;

@@ -95,9 +95,7 @@ grpc::Status SceneRegistry::create(const std::string& id, SceneDesc desc, const 
   ctl.max_bytes = std::max<std::uint64_t>(available, 1);
   SceneCost cost;
   if (Status s = Scene::estimate(desc, opt, &cost, &ctl); !s) return engine_status(s, budget_text);
-  // Each worker's scratch grows to the largest scene it serves: counted
-  // for every scene, a figure on the high side, as a budget should be.
-  const std::uint64_t bytes = cost.bytes + cost.scratch_bytes * config_.workers;
+  const std::uint64_t bytes = cost.served_bytes(config_.workers);
   {
     std::lock_guard<std::mutex> lock(mu_);
     if (grpc::Status s = id_free_locked(id); !s.ok()) return s;
