@@ -1,11 +1,13 @@
 #include "service.h"
 
-#include <algorithm>
 #include <chrono>
-#include <cmath>
 #include <cstdlib>
-#include <optional>
+#include <exception>
+#include <memory>
+#include <mutex>
+#include <string>
 #include <utility>
+#include <vector>
 
 #include "calls.h"
 #include "convert.h"
