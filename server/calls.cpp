@@ -1,8 +1,9 @@
 #include "calls.h"
 
+#include <grpcpp/impl/codegen/proto_utils.h>
 #include <grpcpp/support/proto_buffer_reader.h>
 
-#include "service.h"
+#include "scene_entry.h"
 #include "store.h"
 #include "voxvis/v1/voxvis.pb.h"
 

@@ -1,14 +1,17 @@
 #include "service.h"
 
-#include <algorithm>
 #include <chrono>
-#include <cmath>
 #include <cstdlib>
-#include <optional>
+#include <exception>
+#include <memory>
+#include <mutex>
+#include <string>
 #include <utility>
+#include <vector>
 
 #include "calls.h"
 #include "convert.h"
+#include "frame_answer.h"
 #include "streams.h"
 
 namespace voxvis::server {
@@ -16,21 +19,10 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-std::string mib(std::uint64_t bytes) {
-  return std::to_string((bytes + (1u << 20) - 1) >> 20) + " MiB";
-}
-
 /// An environment variable's value; empty when unset.
 std::string env_text(const char* name) {
   const char* v = std::getenv(name);
   return v ? v : "";
-}
-
-/// Frames of one scene finish in any order: the statistic keeps the latest.
-void store_max(std::atomic<double>& a, double v) {
-  double cur = a.load(std::memory_order_relaxed);
-  while (cur < v && !a.compare_exchange_weak(cur, v, std::memory_order_relaxed)) {
-  }
 }
 
 /// Starts a raw unary call: checks the token's role, takes a place among the
@@ -62,61 +54,6 @@ TypedUnaryCall<Req, Resp>* start_call(Service* svc, const char* method,
 }  // namespace
 
 // ---------------------------------------------------------------------------
-// Wake list
-
-void SceneEntry::refresh_wake() {
-  std::lock_guard<std::mutex> lock(wake_mu);
-  // The epoch is read before the set: a change in between is seen again next
-  // time, never lost.
-  const std::uint64_t epoch = scene->wake_epoch();
-  if (epoch == wake_epoch_seen && wake) return;
-  wake_epoch_seen = epoch;
-  std::vector<ObjectId> ids = scene->wake_set();
-  wake_size.store(static_cast<std::uint32_t>(ids.size()), std::memory_order_relaxed);
-  if (metrics) metrics->wake_size(ids.size());
-  if (wake && wake->ids == ids) return;
-  auto snap = std::make_shared<WakeSnapshot>();
-  snap->version = wake ? wake->version + 1 : 1;
-  snap->ids = std::move(ids);
-  wake = snap;
-  for (const auto& sink : sinks) {
-    std::lock_guard<std::mutex> sink_lock(sink->mu);
-    if (sink->reactor) deliver_wake(sink->reactor, wake);
-  }
-}
-
-void SceneEntry::after_frame(const FrameResult& result) {
-  frames_served.fetch_add(1, std::memory_order_relaxed);
-  tbvs_active.store(result.stats.tbvs_active, std::memory_order_relaxed);
-  if (metrics) metrics->tbvs_active(result.stats.tbvs_active);
-  store_max(time, result.t);
-  refresh_wake();
-}
-
-void SceneEntry::after_moves(double at) {
-  store_max(time, at);
-  store_max(sim_time, at);
-  sim_clock_set = true;
-}
-
-double SceneEntry::view_time(double t, double lead) const {
-  return std::fmin(t, sim_time.load(std::memory_order_relaxed) + lead);
-}
-
-void SceneEntry::subscribe(const std::shared_ptr<WakeSink>& sink) {
-  refresh_wake();
-  std::lock_guard<std::mutex> lock(wake_mu);
-  sinks.push_back(sink);
-  std::lock_guard<std::mutex> sink_lock(sink->mu);
-  if (sink->reactor) deliver_wake(sink->reactor, wake);  // The whole list first.
-}
-
-void SceneEntry::unsubscribe(const std::shared_ptr<WakeSink>& sink) {
-  std::lock_guard<std::mutex> lock(wake_mu);
-  sinks.erase(std::remove(sinks.begin(), sinks.end(), sink), sinks.end());
-}
-
-// ---------------------------------------------------------------------------
 // Service
 
 Service::Service(ServiceConfig config, WorkerPool& pool, WorkerPool& builds, SceneStore& store,
@@ -124,22 +61,14 @@ Service::Service(ServiceConfig config, WorkerPool& pool, WorkerPool& builds, Sce
     : config_(std::move(config)),
       pool_(pool),
       builds_(builds),
-      store_(store),
       tokens_(tokens),
       metrics_(metrics),
       log_(std::move(log)),
       fail_scene_(env_text("VOXVIS_TEST_FAIL_SCENE")),
-      fail_build_(env_text("VOXVIS_TEST_FAIL_BUILD")) {}
+      registry_(RegistryConfig{config_.scene_options, config_.memory_budget_bytes, config_.workers}, pool, store,
+                metrics, log_, stopping_) {}
 
 Service::~Service() = default;
-
-std::shared_ptr<SceneEntry> Service::find(const std::string& id) const {
-  std::lock_guard<std::mutex> lock(scenes_mu_);
-  auto it = scenes_.find(id);
-  return it == scenes_.end() ? nullptr : it->second;
-}
-
-bool Service::has_scene(const std::string& id) const { return find(id) != nullptr; }
 
 bool Service::add_stream(Stream* s) {
   std::lock_guard<std::mutex> lock(streams_mu_);
@@ -231,174 +160,6 @@ void Service::fill_info(const SceneEntry& e, v1::SceneInfo* out) const {
   out->set_memory_bytes(e.memory_bytes);
 }
 
-grpc::Status Service::build_scene(const std::string& id, SceneDesc desc, const std::string& json,
-                                  bool from_json, bool persist, const BuildControl* control) {
-  const SceneOptions& opt = config_.scene_options;
-  if (desc.grid) {
-    // A grid over the voxel limit is refused as too large, not as wrong.
-    const glm::ivec3 g = *desc.grid;
-    const std::int64_t voxels = std::int64_t{g.x} * g.y * g.z;
-    if (g.x > 0 && g.y > 0 && g.z > 0 && voxels > opt.max_voxels)
-      return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
-                          "grid: " + std::to_string(voxels) + " voxels exceed the limit of " +
-                              std::to_string(opt.max_voxels));
-  }
-  // What the engine returns, as the call's status. `budget`: what the
-  // refusal says of the server's budget.
-  auto engine_status = [&](const Status& s, const std::string& budget) {
-    switch (s.code) {
-      case Status::Code::ResourceExhausted:
-        return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED, s.str() + budget);
-      case Status::Code::Cancelled:
-        if (shutting_down()) return shutting_down_status();
-        return grpc::Status(grpc::StatusCode::CANCELLED,
-                            "scene build stopped: the client went away or its deadline passed");
-      default:
-        return invalid(scene_create_error(s, from_json, json));
-    }
-  };
-  std::uint64_t available;
-  std::string budget_text;
-  {
-    std::lock_guard<std::mutex> lock(scenes_mu_);
-    if (grpc::Status s = id_free_locked(id); !s.ok()) return s;
-    available = config_.memory_budget_bytes > bytes_in_use_ ? config_.memory_budget_bytes - bytes_in_use_ : 0;
-    budget_text = "; memory budget " + mib(config_.memory_budget_bytes) + ", " + mib(bytes_in_use_) + " in use";
-  }
-  // The cost from the objects' footprints, before anything large is
-  // allocated; the count stops as soon as it passes what is left.
-  BuildControl ctl = control ? *control : BuildControl{};
-  ctl.max_bytes = std::max<std::uint64_t>(available, 1);
-  SceneCost cost;
-  if (Status s = Scene::estimate(desc, opt, &cost, &ctl); !s) return engine_status(s, budget_text);
-  // Each worker's scratch grows to the largest scene it serves: counted
-  // for every scene, a figure on the high side, as a budget should be.
-  const std::uint64_t bytes = cost.bytes + cost.scratch_bytes * config_.workers;
-  {
-    std::lock_guard<std::mutex> lock(scenes_mu_);
-    if (grpc::Status s = id_free_locked(id); !s.ok()) return s;
-    if (bytes_in_use_ + bytes > config_.memory_budget_bytes)
-      return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
-                          "memory: the scene needs about " + mib(bytes) + " (grid " + std::to_string(cost.res.x) +
-                              "x" + std::to_string(cost.res.y) + "x" + std::to_string(cost.res.z) + ", " +
-                              std::to_string(cost.id_entries) + " id-list entries, scratch of " +
-                              std::to_string(config_.workers) + " workers); memory budget " +
-                              mib(config_.memory_budget_bytes) + ", " + mib(bytes_in_use_) + " in use");
-    reserved_[id] = bytes;
-    bytes_in_use_ += bytes;
-  }
-
-  // From here on every way out but the registration below, a throw
-  // included, gives the id and the bytes back.
-  struct Reservation {
-    std::function<void()> release;
-    ~Reservation() {
-      if (release) release();
-    }
-  } reservation{[&] {
-    std::lock_guard<std::mutex> lock(scenes_mu_);
-    reserved_.erase(id);
-    bytes_in_use_ -= bytes;
-  }};
-  auto entry = std::make_shared<SceneEntry>();
-  ctl.max_bytes = cost.bytes;
-  Status s = Scene::create(desc, opt, &entry->scene, &ctl);
-  if (!s) return engine_status(s, budget_text);
-  if (!fail_build_.empty() && id == fail_build_) throw std::runtime_error("fault injected (VOXVIS_TEST_FAIL_BUILD)");
-  entry->id = id;
-  entry->strand = std::make_shared<Strand>(pool_, "scene:" + id);
-  entry->memory_bytes = bytes;
-  entry->grid = entry->scene->grid();
-  entry->objects = static_cast<std::uint32_t>(entry->scene->object_count());
-  entry->dynamic_objects = static_cast<std::uint32_t>(entry->scene->dynamic_count());
-  entry->time.store(entry->scene->time());
-  entry->metrics = metrics_.scene(id);
-  if (verifier_) {
-    std::vector<ObjectDesc> objects = std::move(desc.objects);
-    std::sort(objects.begin(), objects.end(), [](const ObjectDesc& a, const ObjectDesc& b) { return a.id < b.id; });
-    entry->verify_objects = std::make_shared<const std::vector<ObjectDesc>>(std::move(objects));
-  }
-  entry->refresh_wake();
-  entry->tbvs_active.store(0);
-  // On disk last, so that nothing that can fail comes between the file and
-  // the registration.
-  if (persist) {
-    if (Status w = store_.save_scene(id, json); !w) {
-      metrics_.remove_scene(id);
-      return grpc::Status(grpc::StatusCode::INTERNAL, "cannot store the scene: " + w.str());
-    }
-  }
-  std::size_t count;
-  {
-    std::lock_guard<std::mutex> lock(scenes_mu_);
-    reservation.release = nullptr;  // The bytes stay, now the scene's.
-    reserved_.erase(id);
-    scenes_[id] = entry;
-    count = scenes_.size();
-  }
-  metrics_.scenes(count);
-  return grpc::Status::OK;
-}
-
-grpc::Status Service::id_free_locked(const std::string& id) const {
-  if (deleting_.count(id))
-    return grpc::Status(grpc::StatusCode::ABORTED, "scene_id: '" + id + "' is being deleted; try again");
-  if (scenes_.count(id) || reserved_.count(id))
-    return grpc::Status(grpc::StatusCode::ALREADY_EXISTS, "scene_id: '" + id + "' exists");
-  return grpc::Status::OK;
-}
-
-Status Service::load_scene(const std::string& id, const std::string& json,
-                           const std::string& source, const std::vector<Move>* positions,
-                           std::optional<double> t, bool persist) {
-  SceneDesc desc;
-  FormatError err;
-  if (!parse_scene(json, source, &desc, &err)) return Status::Error("", err.str());
-  // Checked before the scene is registered, so that applying it cannot fail.
-  if (t) {
-    if (Status s = validate_time("t", *t); !s) return Status::Error("", source + ": saved time: " + s.str());
-  }
-  if (positions) {
-    std::map<ObjectId, Vec3> at;
-    for (const Move& m : *positions) at[m.id] = m.center;
-    for (ObjectDesc& o : desc.objects) {
-      auto it = at.find(o.id);
-      if (o.dynamic && it != at.end()) o.center = it->second;
-    }
-  }
-  grpc::Status g = build_scene(id, std::move(desc), json, true, persist);
-  if (!g.ok()) return Status::Error("", source + ": " + g.error_message());
-  if (t) {
-    // Nothing serves the scene yet: the strand's fields are ours here.
-    std::shared_ptr<SceneEntry> e = find(id);
-    e->scene->apply_moves(*t, {});
-    e->time.store(*t);
-    e->sim_time.store(*t);
-    e->sim_clock_set = true;
-  }
-  return Status::Ok();
-}
-
-void Service::save_positions() {
-  std::vector<std::shared_ptr<SceneEntry>> entries;
-  {
-    std::lock_guard<std::mutex> lock(scenes_mu_);
-    for (auto& [id, e] : scenes_)
-      if (e->dynamic_objects > 0 && e->positions_dirty.load()) entries.push_back(e);
-  }
-  for (const auto& e : entries) {
-    e->positions_dirty.store(false);
-    double t = 0.0;
-    const std::vector<Move> centers = e->scene->dynamic_centers(&t);
-    std::lock_guard<std::mutex> lock(store_mu_);
-    if (e->deleted.load()) continue;
-    if (Status s = store_.save_positions(e->id, t, centers); !s) {
-      e->positions_dirty.store(true);  // Try again next period.
-      log_("cannot save positions of scene '" + e->id + "': " + s.str());
-    }
-  }
-}
-
 // --- RPCs ------------------------------------------------------------------
 
 grpc::ServerUnaryReactor* Service::CreateScene(grpc::CallbackServerContext* ctx,
@@ -453,7 +214,7 @@ grpc::ServerUnaryReactor* Service::CreateScene(grpc::CallbackServerContext* ctx,
         default:
           s = Status::Error("content", "missing: set description or scene_json");
       }
-      g = s ? build_scene(req->scene_id(), std::move(desc), json, from_json, true, &control) : invalid(s);
+      g = s ? registry_.create(req->scene_id(), std::move(desc), json, from_json, true, &control) : invalid(s);
       if (g.ok()) {
         fill_info(*find(req->scene_id()), resp);
         log_("created scene '" + req->scene_id() + "'");
@@ -480,51 +241,11 @@ grpc::ServerUnaryReactor* Service::DeleteScene(grpc::CallbackServerContext* ctx,
     finish_unary(r, "DeleteScene", s);
     return reactor;
   }
-  // The id stays taken (deleting_) until the scene's files and metrics are
-  // gone, so that a CreateScene of the same id cannot interleave with the
-  // removal and lose its files or its metric series.
-  std::shared_ptr<SceneEntry> e;
-  std::size_t count;
-  {
-    std::lock_guard<std::mutex> lock(scenes_mu_);
-    auto it = scenes_.find(req->scene_id());
-    if (it != scenes_.end()) {
-      e = it->second;
-      scenes_.erase(it);
-      bytes_in_use_ -= e->memory_bytes;
-      deleting_.insert(e->id);
-    }
-    count = scenes_.size();
-  }
-  if (!e) {
-    finish_unary(r, "DeleteScene", no_scene(req->scene_id()));
-    return reactor;
-  }
-  Status removed;
-  {
-    std::lock_guard<std::mutex> lock(store_mu_);
-    e->deleted.store(true);
-    removed = store_.remove_scene(e->id);
-  }
-  {
+  const grpc::Status g = registry_.remove(req->scene_id(), [this](SceneEntry& e) {
     std::lock_guard<std::mutex> lock(streams_mu_);
-    for (Stream* s : streams_)
-      s->stop_if(e.get(), deleted(*e));
-  }
-  metrics_.remove_scene(e->id);
-  metrics_.scenes(count);
-  {
-    std::lock_guard<std::mutex> lock(scenes_mu_);
-    deleting_.erase(e->id);
-  }
-  if (!removed) {
-    log_("scene '" + e->id + "' deleted but its files remain: " + removed.str());
-    finish_unary(r, "DeleteScene",
-                 grpc::Status(grpc::StatusCode::INTERNAL, "cannot remove the scene's files: " + removed.str()));
-    return reactor;
-  }
-  log_("deleted scene '" + e->id + "'");
-  finish_unary(r, "DeleteScene", grpc::Status::OK);
+    for (Stream* s : streams_) s->stop_if(&e, deleted(e));
+  });
+  finish_unary(r, "DeleteScene", g);
   return reactor;
 }
 
@@ -535,12 +256,7 @@ grpc::ServerUnaryReactor* Service::ListScenes(grpc::CallbackServerContext* ctx,
       this, "ListScenes", ctx, Role::Viewer, in, out, &reactor);
   if (!r) return reactor;
   v1::ListScenesResponse* resp = &r->resp;
-  std::vector<std::shared_ptr<SceneEntry>> entries;
-  {
-    std::lock_guard<std::mutex> lock(scenes_mu_);
-    for (auto& [id, e] : scenes_) entries.push_back(e);
-  }
-  for (const auto& e : entries) fill_info(*e, resp->add_scenes());
+  for (const auto& e : registry_.list()) fill_info(*e, resp->add_scenes());
   finish_unary(r, "ListScenes", grpc::Status::OK);
   return reactor;
 }
@@ -592,39 +308,60 @@ grpc::ServerUnaryReactor* Service::GetPvs(grpc::CallbackServerContext* ctx,
       finish_unary(r, "GetPvs", shutting_down_status());
       return;
     }
-    if (e->deleted.load()) {
-      finish_unary(r, "GetPvs", deleted(*e));
-      return;
-    }
-    Scene& scene = *e->scene;
     FrameResult result;
-    grpc::Status g = guarded(*e, "frame", [&] {
-      // A one-frame viewer, removed however the frame ends.
-      struct OneFrameViewer {
-        Scene& scene;
-        const ViewerId id = scene.add_viewer();
-        ~OneFrameViewer() { scene.remove_viewer(id); }
-      } viewer{scene};
-      Status s = scene.frame(viewer.id, camera, e->view_time(t, config_.max_view_lead_s), scratch, &result,
-                             Scene::Clock::Latest);
-      return s ? grpc::Status::OK : invalid(s);
-    });
-    if (!g.ok()) {
+    bool check = false;
+    if (grpc::Status g = serve_frame(*e, nullptr, camera, t, scratch, &result, &check); !g.ok()) {
       finish_unary(r, "GetPvs", g);
       return;
     }
-    e->after_frame(result);
-    add_ids(result.pvs, resp->mutable_pvs());
-    stats_to_proto(result.stats, resp->mutable_stats());
-    resp->set_t(result.t);
-    if (e->metrics)
-      e->metrics->frame(result.stats, std::chrono::duration<double>(Clock::now() - received).count());
-    const bool check = verify_sample();
+    const double latency = std::chrono::duration<double>(Clock::now() - received).count();
+    answer_frame(*e, result, v1::PVS_FULL, nullptr, latency, resp);
     const std::string peer = check ? ctx->peer() : std::string();
     finish_unary(r, "GetPvs", grpc::Status::OK);
     if (check) verify_served(*e, peer + " (GetPvs)", 0, camera, result);
   });
   return reactor;
+}
+
+grpc::Status Service::serve_frame(SceneEntry& e, FrameViewer* viewer, const Camera& camera, double t,
+                                  Scratch& scratch, FrameResult* result, bool* check) {
+  if (e.deleted.load()) return deleted(e);
+  Scene& scene = *e.scene;
+  // The scene's clock is shared: a time behind it is taken as it, one too
+  // far beyond the simulation's as its limit.
+  const double at = e.view_time(t, config_.max_view_lead_s);
+  const grpc::Status g = guarded(e, "frame", [&] {
+    auto frame = [&](ViewerId id) {
+      Status s = scene.frame(id, camera, at, scratch, result, Scene::Clock::Latest);
+      return s ? grpc::Status::OK : invalid(s);
+    };
+    if (viewer == nullptr) {
+      // A one-frame viewer, removed however the frame ends.
+      struct OneFrameViewer {
+        Scene& scene;
+        const ViewerId id = scene.add_viewer();
+        ~OneFrameViewer() { scene.remove_viewer(id); }
+      } one{scene};
+      return frame(one.id);
+    }
+    if (!viewer->added) {
+      viewer->id = scene.add_viewer();
+      viewer->added = true;
+    }
+    return frame(viewer->id);
+  });
+  if (!g.ok()) return g;
+  e.after_frame(*result);
+  if (check) *check = verify_sample();
+  return grpc::Status::OK;
+}
+
+void Service::release_viewer(const std::string& client, const std::shared_ptr<SceneEntry>& e,
+                             const FrameViewer& viewer) {
+  if (!viewer.added) return;
+  pool_.submit(client, [e, v = viewer.id](Scratch&) {
+    if (!e->deleted.load()) e->scene->remove_viewer(v);
+  });
 }
 
 grpc::Status Service::apply_batch(SceneEntry& e, double t, const std::vector<Move>& moves,

@@ -1,5 +1,5 @@
 // service.h — the Visibility service (proto/voxvis/v1/voxvis.proto) on gRPC's
-// callback API, and the scenes it serves.
+// callback API. Its scenes are kept by a SceneRegistry (scene_registry.h).
 //
 // Threads: gRPC's callback threads run the reactors' reactions, which only
 // check messages, update per-stream state under the stream's mutex, and post
@@ -14,11 +14,9 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
-#include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
-#include <set>
 #include <stdexcept>
 #include <string>
 #include <unordered_set>
@@ -30,84 +28,14 @@
 #include "calls.h"
 #include "metrics.h"
 #include "pool.h"
+#include "scene_entry.h"
+#include "scene_registry.h"
 #include "store.h"
 #include "verifier.h"
 #include "voxvis/scene.h"
 #include "voxvis/v1/voxvis.grpc.pb.h"
 
 namespace voxvis::server {
-
-/// The wake list at one moment: ascending ids, and a version that increases
-/// with every change.
-struct WakeSnapshot {
-  std::uint64_t version = 0;
-  std::vector<ObjectId> ids;
-};
-
-class SimReactor;
-
-/// Where a scene delivers wake-list changes to one Simulate stream. The
-/// stream clears `reactor` (under `mu`) before it is deleted.
-struct WakeSink {
-  std::mutex mu;
-  SimReactor* reactor = nullptr;  // Guarded by mu.
-};
-
-/// A scene being served. The Scene synchronizes itself: frames of different
-/// viewers run in parallel, moves exclusively (voxvis/scene.h). Move batches
-/// go through `strand`, so that a scene's batches apply in arrival order and
-/// occupy one worker at a time.
-struct SceneEntry {
-  std::string id;
-  std::shared_ptr<Strand> strand;
-  std::unique_ptr<Scene> scene;
-  std::shared_ptr<SceneMetrics> metrics;
-  std::uint64_t memory_bytes = 0;  ///< Reserved in the budget: Scene::estimate's bytes and scratch.
-  GridSpec grid;  // Immutable copies for statistics.
-  std::uint32_t objects = 0;
-  std::uint32_t dynamic_objects = 0;
-
-  std::atomic<bool> deleted{false};
-  std::atomic<bool> positions_dirty{false};
-  std::atomic<std::uint64_t> frames_served{0};
-  std::atomic<std::uint64_t> moves_applied{0};
-  std::atomic<std::uint32_t> viewers{0};
-  std::atomic<std::uint32_t> simulators{0};
-  std::atomic<std::uint32_t> tbvs_active{0};
-  std::atomic<std::uint32_t> wake_size{0};
-  std::atomic<double> time{0.0};
-  /// The clock as the simulation set it: the latest batch time (or the saved
-  /// time at load). Viewers' frames may run at most ServiceConfig's
-  /// max_view_lead_s beyond it. Written by the scene's strand only.
-  std::atomic<double> sim_time{0.0};
-  /// Verify mode only: the scene's objects as created, ascending ids (the
-  /// static ones never move; dynamic centres come from the scene).
-  std::shared_ptr<const std::vector<ObjectDesc>> verify_objects;
-  /// Whether any simulation batch (or a saved time) has set the clock yet;
-  /// the first may set it anywhere in range. Touched by the strand only.
-  bool sim_clock_set = false;
-
-  std::mutex wake_mu;
-  std::uint64_t wake_epoch_seen = ~std::uint64_t{0};       // Guarded by wake_mu.
-  std::shared_ptr<const WakeSnapshot> wake;                // Guarded by wake_mu.
-  std::vector<std::shared_ptr<WakeSink>> sinks;            // Guarded by wake_mu.
-
-  /// Bookkeeping after a frame computed for any viewer: counters, metrics,
-  /// the scene's time and the wake list.
-  void after_frame(const FrameResult& result);
-  /// Bookkeeping after a simulation batch applied at scene time `at`: the
-  /// scene's and the simulation's clocks. Called by the scene's strand.
-  void after_moves(double at);
-  /// The time a viewer's frame at `t` runs at: `t`, but at most `lead`
-  /// seconds beyond the simulation's clock (viewers do not own the clock).
-  double view_time(double t, double lead) const;
-  /// Recomputes the wake list when the engine says it may have changed and
-  /// hands a new snapshot to every Simulate stream of the scene.
-  void refresh_wake();
-  /// Registers a Simulate stream's sink and hands it the whole list.
-  void subscribe(const std::shared_ptr<WakeSink>& sink);
-  void unsubscribe(const std::shared_ptr<WakeSink>& sink);
-};
 
 /// Server-wide settings (voxvis-server's options; docs/server.md).
 struct ServiceConfig {
@@ -153,17 +81,20 @@ class Service final : public RawVisibilityService {
 
   /// Loads a scene at start (data directory or --scene file). Runs on the
   /// caller's thread before the server accepts calls. `positions`, when
-  /// given, replace the centres of the dynamic objects they name.
+  /// given, replace the centres of the dynamic objects they name
+  /// (SceneRegistry::load).
   Status load_scene(const std::string& id, const std::string& json, const std::string& source,
-                    const std::vector<Move>* positions, std::optional<double> t, bool persist);
-  bool has_scene(const std::string& id) const;
+                    const std::vector<Move>* positions, std::optional<double> t, bool persist) {
+    return registry_.load(id, json, source, positions, t, persist);
+  }
+  bool has_scene(const std::string& id) const { return find(id) != nullptr; }
 
   /// Ends every stream with UNAVAILABLE after its in-flight frame and refuses
   /// new ones. Call before grpc::Server::Shutdown.
   void begin_shutdown();
   /// Writes the positions of every scene whose dynamic objects moved since
   /// the last save.
-  void save_positions();
+  void save_positions() { registry_.save_positions(); }
 
   // RPCs (see the .proto), raw: requests are parsed in calls.h's helpers.
   using Raw = grpc::ByteBuffer;
@@ -182,7 +113,7 @@ class Service final : public RawVisibilityService {
                                    Raw* out) override;
 
   // For the reactors.
-  std::shared_ptr<SceneEntry> find(const std::string& id) const;
+  std::shared_ptr<SceneEntry> find(const std::string& id) const { return registry_.find(id); }
   const TokenTable& tokens() const { return tokens_; }
   Metrics& metrics() { return metrics_; }
   WorkerPool& pool() { return pool_; }
@@ -203,7 +134,10 @@ class Service final : public RawVisibilityService {
   /// Counts a call ended with a non-OK status.
   void count_error(const char* method, const grpc::Status& status);
   /// Verify mode (--verify-fraction): set before serving; null when off.
-  void set_verifier(Verifier* v) { verifier_ = v; }
+  void set_verifier(Verifier* v) {
+    verifier_ = v;
+    registry_.keep_objects(v != nullptr);
+  }
   /// Whether the frame about to be served is one to verify.
   bool verify_sample() { return verifier_ != nullptr && verifier_->sample(); }
   /// Hands a served frame to the verifier, after its answer: reads the
@@ -211,6 +145,20 @@ class Service final : public RawVisibilityService {
   /// (FrameResult::positions_epoch), else the frame is dropped (counted).
   void verify_served(const SceneEntry& e, const std::string& viewer, std::uint64_t frame, const Camera& camera,
                      const FrameResult& result);
+  /// Serves one frame of scene `e`: GetPvs, View and Tick alike, in a pool
+  /// job. NOT_FOUND when the scene was deleted; else the frame of `viewer`
+  /// (added by its first frame; null: a viewer for this frame only) at `t`
+  /// as the scene's clock allows (SceneEntry::view_time), run by guarded()
+  /// into `*result`, then the scene's bookkeeping (SceneEntry::after_frame).
+  /// `*check`, when given, says whether verify mode samples the frame: the
+  /// caller hands it to verify_served after its answer. The answer itself is
+  /// answer_frame's (frame_answer.h), when the call writes it.
+  grpc::Status serve_frame(SceneEntry& e, FrameViewer* viewer, const Camera& camera, double t, Scratch& scratch,
+                           FrameResult* result, bool* check = nullptr);
+  /// Removes a call's engine viewer (when its first frame added one), in a
+  /// pool job under `client`: its claims on its last PVS go with it, and the
+  /// scene's lock is a job's to take, never a reaction's.
+  void release_viewer(const std::string& client, const std::shared_ptr<SceneEntry>& e, const FrameViewer& viewer);
   /// Applies a move batch at time `t` to scene `e` (call from the scene's
   /// strand): the clock's step limit, the engine (errors on `field_prefix` +
   /// the engine's field, "batch.moves[3].id"), then the counters, the
@@ -248,40 +196,21 @@ class Service final : public RawVisibilityService {
   std::shared_ptr<SceneEntry> find_or_finish(UnaryCall* r, const char* method,
                                              const std::string& id);
   void fill_info(const SceneEntry& e, v1::SceneInfo* out) const;
-  /// Checks the budget, builds, persists (when `persist`) and registers a
-  /// scene. INVALID_ARGUMENT, ALREADY_EXISTS, RESOURCE_EXHAUSTED or INTERNAL.
-  /// The cost comes from Scene::estimate (the objects' footprints) before
-  /// anything large is allocated; `control` (may be null) cancels the build
-  /// (CANCELLED, or UNAVAILABLE when the server is stopping).
-  grpc::Status build_scene(const std::string& id, SceneDesc desc, const std::string& json,
-                           bool from_json, bool persist, const BuildControl* control = nullptr);
-  /// OK when no scene has or is taking the id: else ALREADY_EXISTS, or
-  /// ABORTED while it is being deleted.
-  grpc::Status id_free_locked(const std::string& id) const;
 
   ServiceConfig config_;
   WorkerPool& pool_;
   WorkerPool& builds_;
-  SceneStore& store_;
   const TokenTable& tokens_;
   Metrics& metrics_;
   Log log_;
   Verifier* verifier_ = nullptr;
   const std::string fail_scene_;  // VOXVIS_TEST_FAIL_SCENE; empty: none.
-  const std::string fail_build_;  // VOXVIS_TEST_FAIL_BUILD: builds of that id throw once built.
-
-  mutable std::mutex scenes_mu_;
-  std::map<std::string, std::shared_ptr<SceneEntry>> scenes_;  // Guarded by scenes_mu_.
-  std::map<std::string, std::uint64_t> reserved_;  // Guarded by scenes_mu_: ids being created.
-  std::set<std::string> deleting_;                 // Guarded by scenes_mu_: ids being deleted.
-  std::uint64_t bytes_in_use_ = 0;                 // Guarded by scenes_mu_ (scenes and reserved).
-
-  std::mutex store_mu_;  // Serializes position saves with scene deletion.
+  std::atomic<bool> stopping_{false};  // shutting_down_, readable without the lock.
+  SceneRegistry registry_;
 
   std::mutex streams_mu_;
   std::unordered_set<Stream*> streams_;  // Guarded by streams_mu_.
   bool shutting_down_ = false;           // Guarded by streams_mu_.
-  std::atomic<bool> stopping_{false};    // shutting_down_, readable without the lock.
   std::atomic<std::uint64_t> dropped_{0};
   std::atomic<int> calls_{0};
 };

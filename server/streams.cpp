@@ -1,7 +1,8 @@
 // streams.cpp — the two streaming calls, View (a viewer's frames) and
 // Simulate (a backend's moves and the scene's wake list), as callback
 // reactors. Their shared base handles admission, raw messages, stopping and
-// lifetime; service.cpp owns the scenes they work on.
+// lifetime; the Service serves their frames (Service::serve_frame) and its
+// SceneRegistry keeps the scenes they work on.
 #include "streams.h"
 
 #include <atomic>
@@ -15,6 +16,7 @@
 
 #include "calls.h"
 #include "convert.h"
+#include "frame_answer.h"
 #include "stream_reactor.h"
 
 namespace voxvis::server {
@@ -69,7 +71,6 @@ class ViewReactor final
   };
   struct Ready {
     std::uint64_t frame = 0;
-    double t = 0.0;
     FrameResult result;
     Clock::time_point received;
     std::uint32_t skipped = 0;
@@ -132,31 +133,17 @@ class ViewReactor final
     if (stopped) {
       // Cancelled, shut down or deleted while queued: nobody waits for it.
       svc_->count_dropped();
-    } else if (e.deleted.load()) {
-      error = deleted(e);
     } else {
-      Scene& scene = *e.scene;
-      if (!viewer_added_) {
-        viewer_ = scene.add_viewer();
-        viewer_added_ = true;
-      }
       ready.emplace();
       ready->frame = p.frame;
       ready->received = p.received;
       ready->skipped = skipped;
-      // The scene's clock is shared: a time behind it is taken as it, one
-      // too far beyond the simulation's as its limit.
-      const double t = e.view_time(p.t, svc_->config().max_view_lead_s);
-      error = svc_->guarded(e, "frame", [&] {
-        Status s = scene.frame(viewer_, p.camera, t, scratch, &ready->result, Scene::Clock::Latest);
-        return s ? grpc::Status::OK : invalid(s);
-      });
-      ready->t = ready->result.t;
+      bool sampled = false;
+      error = svc_->serve_frame(e, &viewer_, p.camera, p.t, scratch, &ready->result, &sampled);
       if (!error.ok()) {
         ready.reset();
-      } else {
-        e.after_frame(ready->result);
-        if (svc_->verify_sample()) check.emplace(ready->result);
+      } else if (sampled) {
+        check.emplace(ready->result);
       }
     }
     // Once mu_ is released another thread may end and delete this stream
@@ -164,7 +151,7 @@ class ViewReactor final
     // it is copied first. The service, the entry and `p` outlive the stream.
     Service* const svc = svc_;
     const std::uint64_t frame = p.frame;
-    const std::string viewer = check ? client_ + " viewer " + std::to_string(viewer_) : std::string();
+    const std::string viewer = check ? client_ + " viewer " + std::to_string(viewer_.id) : std::string();
     bool del;
     {
       std::lock_guard<std::mutex> lock(mu_);
@@ -186,25 +173,12 @@ class ViewReactor final
     Ready& r = *ready_;
     auto& w = write_.fresh();
     w.set_frame(r.frame);
-    w.set_t(r.t);
     w.set_encoding(encoding_);
-    std::vector<ObjectId>& pvs = r.result.pvs;
-    if (encoding_ == v1::PVS_DELTA) {
-      difference(pvs, last_sent_, w.mutable_added());
-      difference(last_sent_, pvs, w.mutable_removed());
-    } else {
-      add_ids(pvs, w.mutable_pvs());
-    }
-    add_ids(r.result.wake, w.mutable_wake());
-    stats_to_proto(r.result.stats, w.mutable_stats());
     w.set_frames_skipped(r.skipped);
     const double latency = std::chrono::duration<double>(Clock::now() - r.received).count();
     w.set_server_us(latency * 1e6);
-    if (entry_->metrics) {
-      entry_->metrics->frame(r.result.stats, latency);
-      if (r.skipped) entry_->metrics->skipped(r.skipped);
-    }
-    last_sent_ = std::move(pvs);
+    answer_frame(*entry_, r.result, encoding_, &last_sent_, latency, &w);
+    if (entry_->metrics && r.skipped) entry_->metrics->skipped(r.skipped);
     ready_.reset();
     start_write_locked();
   }
@@ -213,12 +187,7 @@ class ViewReactor final
     if (!entry_) return;
     entry_->viewers.fetch_sub(1, std::memory_order_relaxed);
     if (entry_->metrics) entry_->metrics->viewers(-1);
-    if (viewer_added_) {
-      // The viewer's claims on its last PVS go with it.
-      svc_->pool().submit(client_, [entry = entry_, v = viewer_](Scratch&) {
-        if (!entry->deleted.load()) entry->scene->remove_viewer(v);
-      });
-    }
+    svc_->release_viewer(client_, entry_, viewer_);
   }
 
   std::optional<Pending> pending_;       // Guarded by mu_.
@@ -226,9 +195,7 @@ class ViewReactor final
   std::optional<Ready> ready_;           // Guarded by mu_.
   std::vector<ObjectId> last_sent_;      // Guarded by mu_: PVS of the last answer written.
   bool computing_ = false, eof_ = false;  // Guarded by mu_.
-  // Touched by this stream's jobs only, one at a time (handed over through mu_).
-  bool viewer_added_ = false;
-  ViewerId viewer_ = 0;
+  FrameViewer viewer_;  // Touched by this stream's jobs only, one at a time (handed over through mu_).
 };
 
 // ---------------------------------------------------------------------------

@@ -20,7 +20,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <iterator>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -28,6 +27,7 @@
 #include <utility>
 #include <vector>
 
+#include "frame_answer.h"
 #include "stream_reactor.h"
 
 namespace voxvis::server {
@@ -55,8 +55,7 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
 
  private:
   struct ViewerState {
-    bool added = false;  // The engine's viewer exists.
-    ViewerId engine = 0;
+    FrameViewer engine;               // The engine's viewer, added by its first frame.
     std::vector<ObjectId> last_sent;  // PVS of the last answer written.
   };
   /// One viewer entry of a tick: its camera, or why it was refused.
@@ -236,7 +235,7 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
     for (std::uint64_t id : left_) {
       auto it = viewers_.find(id);
       if (it == viewers_.end()) continue;
-      if (it->second.added) remove_engine_viewer_locked(it->second.engine);
+      svc_->release_viewer(client_, entry_, it->second.engine);
       viewers_.erase(it);
       count_viewers_locked(-1);
     }
@@ -279,13 +278,6 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
     if (entry_->metrics) entry_->metrics->viewers(delta);
   }
 
-  void remove_engine_viewer_locked(ViewerId v) {
-    // Its claims on its last PVS go with it; the scene's lock is a job's to take.
-    svc_->pool().submit(client_, [entry = entry_, v](Scratch&) {
-      if (!entry->deleted.load()) entry->scene->remove_viewer(v);
-    });
-  }
-
   // Pool job: the frame of entry i of the tick being computed.
   void compute(SceneEntry& e, std::size_t i, Scratch& scratch) {
     bool stopped;
@@ -297,21 +289,8 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
     grpc::Status error;
     if (stopped) {
       svc_->count_dropped();
-    } else if (e.deleted.load()) {
-      error = deleted(e);
     } else {
-      Scene& scene = *e.scene;
-      ViewerState& v = *entry.state;
-      if (!v.added) {
-        v.engine = scene.add_viewer();
-        v.added = true;
-      }
-      const double t = e.view_time(tick_.t, svc_->config().max_view_lead_s);
-      error = svc_->guarded(e, "frame", [&] {
-        Status s = scene.frame(v.engine, entry.camera, t, scratch, &entry.result, Scene::Clock::Latest);
-        return s ? grpc::Status::OK : invalid(s);
-      });
-      if (error.ok()) e.after_frame(entry.result);
+      error = svc_->serve_frame(e, &entry.state->engine, entry.camera, tick_.t, scratch, &entry.result);
     }
     bool del;
     {
@@ -347,23 +326,7 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
         a->mutable_error()->set_description(e.error.message);
         continue;
       }
-      std::vector<ObjectId>& pvs = e.result.pvs;
-      a->set_t(e.result.t);
-      if (encoding_ == v1::PVS_DELTA) {
-        const std::vector<ObjectId>& last = e.state->last_sent;
-        scratch_.clear();
-        std::set_difference(pvs.begin(), pvs.end(), last.begin(), last.end(), std::back_inserter(scratch_));
-        ids_to_proto(scratch_, a->mutable_added());
-        scratch_.clear();
-        std::set_difference(last.begin(), last.end(), pvs.begin(), pvs.end(), std::back_inserter(scratch_));
-        ids_to_proto(scratch_, a->mutable_removed());
-      } else {
-        ids_to_proto(pvs, a->mutable_pvs());
-      }
-      ids_to_proto(e.result.wake, a->mutable_wake());
-      stats_to_proto(e.result.stats, a->mutable_stats());
-      if (entry_->metrics) entry_->metrics->frame(e.result.stats, latency);
-      e.state->last_sent.swap(pvs);  // The entry keeps the other buffer for a later frame.
+      answer_frame(*entry_, e.result, encoding_, &e.state->last_sent, latency, a, &scratch_);
     }
     if (entry_->metrics && r.skipped) entry_->metrics->skipped(r.skipped);
     w.set_moves_applied(moves_applied_);
@@ -381,11 +344,7 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
 
   /// The scene's wake list, when it changed since the last one written.
   void write_wake_locked() {
-    std::shared_ptr<const WakeSnapshot> now;
-    {
-      std::lock_guard<std::mutex> lock(entry_->wake_mu);
-      now = entry_->wake;
-    }
+    std::shared_ptr<const WakeSnapshot> now = entry_->wake_now();
     if (!now || now == wake_sent_ || (wake_sent_ && now->ids == wake_sent_->ids)) return;
     wake_to_proto(*now, wake_sent_.get(), write_.get().mutable_wake());
     wake_sent_ = std::move(now);
@@ -400,7 +359,7 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
   void on_release() {
     if (!entry_) return;
     for (auto& [id, v] : viewers_) {
-      if (v.added) remove_engine_viewer_locked(v.engine);
+      svc_->release_viewer(client_, entry_, v.engine);
       count_viewers_locked(-1);
     }
   }

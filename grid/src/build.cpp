@@ -306,25 +306,41 @@ Status scene_cost(const Scene::Impl& s, const std::array<std::uint64_t, detail::
   const std::uint64_t boxes = buffer ? s.pyr.cells(1) : 0;
   cost->res = s.res;
   cost->id_entries = entries + dyn_entries;
+  const std::uint64_t cells = s.cell_base[static_cast<std::size_t>(s.pyr.levels)];
+  const std::uint64_t objects = s.objs.size(), dynamic = s.dynamic_count;
   // Per voxel: flags (1), the opaque boxes' owners (4, buffer on); CSR
   // offsets and entries (4 each); per brick its dynamic list head, seen
-  // time and mask; per coarser cell a list head; 16 bytes a dynamic entry
-  // (the lists keep up to twice their live entries); each object's state
-  // and index entry; with the buffer on, the per-brick lists (at most the
-  // voxels' own entries and one box per brick); per cell of levels >= 1 its static mask (8), with
-  // dynamic objects its dynamic count and mask (12) — masks and counts with
-  // the buffer only — and, from level 2, the time it was last seen whole (8),
-  // and at level 2 the time anything in it was seen (8).
-  const std::uint64_t cells = s.cell_base[static_cast<std::size_t>(s.pyr.levels)];
+  // time and mask; per coarser cell a list head; each object's state and
+  // index entry; with the buffer on, the per-brick lists (at most the
+  // voxels' own entries and one box per brick); per cell of levels >= 1 its
+  // static mask (8), with dynamic objects its dynamic count and mask (12) —
+  // masks and counts with the buffer only — and, from level 2, the time it
+  // was last seen whole (8), and at level 2 the time anything in it was
+  // seen (8).
+  //
+  // The dynamic lists: a cell drops its stale entries only once they are
+  // 16 more than twice its live ones (scene.cpp, brick_add), and a list
+  // grows by doubling, so a cell that ever held one entry keeps up to 16
+  // (128 bytes), and one that held L >= 2 at once up to 192 + 32 L bytes:
+  // 128 bytes a dynamic cell (bricks and coarser) and 64 a dynamic entry.
+  // Per dynamic object, its entries in the TBV expiry queue (a live one and
+  // a stale one) and the reveal, unclaimed and wake queues, doubled by
+  // their growth: 64 bytes.
   cost->bytes = nvox * (1 + (buffer ? 4 : 0)) + 4 * (offsets + entries) + boxes * sizeof(VoxBox) +
                 bricks * (sizeof(detail::Brick) + 16) + coarse * (sizeof(detail::Brick) + 8) +
-                (bricks > 0 && s.pyr.levels > 2 ? 8 * s.pyr.cells(2) : 0) + 16 * dyn_entries +
-                (buffer ? 8 * cells + (bricks > 0 ? 12 * cells : 0) : 0) +
+                (bricks > 0 && s.pyr.levels > 2 ? 8 * s.pyr.cells(2) : 0) + 128 * (bricks + coarse) +
+                64 * dyn_entries + 64 * dynamic + (buffer ? 8 * cells + (bricks > 0 ? 12 * cells : 0) : 0) +
                 (buffer ? 4 * (per_level[0] + 2 * (s.pyr.cells(1) + 1)) + 4 * boxes : 0) +
-                s.objs.size() * (sizeof(Obj) + 48) + (1u << 16);
+                objects * (sizeof(Obj) + 48) + (1u << 16);
   // A worker's scratch: the voxel traversal's stamps (a byte a voxel, the
-  // buffer off), per object, box, brick and cell a mark.
-  cost->scratch_bytes = (buffer ? 0 : nvox) + 8 * s.objs.size() + 4 * boxes + 8 * bricks + 4 * s.cell_base[static_cast<std::size_t>(s.pyr.levels)];
+  // buffer off); per object a PVS mark and a frustum mark (8) and its place
+  // in the PVS (4, doubled by the list's growth); per dynamic object its
+  // places in the frame's reveals and deferred TBVs (8, doubled); per box
+  // and per cell a mark (4); with dynamic objects, per brick the voxels a
+  // frame saw (8) and its place in their list (4, doubled), per coarser
+  // cell its place in the cells seen whole (8, doubled).
+  cost->scratch_bytes = (buffer ? 0 : nvox) + 16 * objects + 16 * dynamic + 4 * boxes + 4 * cells +
+                        16 * bricks + 16 * coarse;
   cost->work = meter.steps() + nvox * 2;
   if (meter.max_bytes() > 0 && cost->bytes > meter.max_bytes()) {
     const std::string grid = std::to_string(s.res.x) + "x" + std::to_string(s.res.y) + "x" + std::to_string(s.res.z);

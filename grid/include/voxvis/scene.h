@@ -48,7 +48,9 @@ struct SceneDesc {
 
 struct SceneOptions {
   /// Refuse resolutions above this many voxels (before allocating anything).
-  /// The grid costs about 9 bytes a voxel plus 4 per worker Scratch.
+  /// The grid costs about 9 bytes a voxel (5 with the occlusion buffer
+  /// off, and then 1 more in each worker's Scratch), and about 3 more with
+  /// dynamic objects; SceneCost has the figure of a scene (Scene::estimate).
   std::int64_t max_voxels = std::int64_t{1} << 27;
   /// Per-axis resolution limit.
   int max_resolution = kMaxResolution;
@@ -192,6 +194,13 @@ struct SceneCost {
   std::uint64_t scratch_bytes = 0;///< What each worker's Scratch grows by to serve it, bytes.
   std::uint64_t id_entries = 0;   ///< Entries of the id lists (each object once per cell it is stored in).
   std::uint64_t work = 0;         ///< Steps the build takes (cells written and tested), for progress.
+
+  /// What serving the scene from `workers` threads costs, bytes: the
+  /// scene's own and each worker's scratch (the figure a server's memory
+  /// budget counts). A worker's Scratch grows to the largest scene it
+  /// serves, so counting it for every scene is on the high side, as a
+  /// budget's figure should be.
+  std::uint64_t served_bytes(unsigned workers) const { return bytes + scratch_bytes * workers; }
 };
 
 /// Cooperative control of a long Scene::create or Scene::estimate, polled

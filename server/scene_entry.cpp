@@ -1,0 +1,78 @@
+#include "scene_entry.h"
+
+#include <algorithm>
+#include <cmath>
+#include <utility>
+
+#include "streams.h"
+
+namespace voxvis::server {
+namespace {
+
+/// Frames of one scene finish in any order: the statistic keeps the latest.
+void store_max(std::atomic<double>& a, double v) {
+  double cur = a.load(std::memory_order_relaxed);
+  while (cur < v && !a.compare_exchange_weak(cur, v, std::memory_order_relaxed)) {
+  }
+}
+
+}  // namespace
+
+void SceneEntry::refresh_wake() {
+  std::lock_guard<std::mutex> lock(wake_mu);
+  // The epoch is read before the set: a change in between is seen again next
+  // time, never lost.
+  const std::uint64_t epoch = scene->wake_epoch();
+  if (epoch == wake_epoch_seen && wake) return;
+  wake_epoch_seen = epoch;
+  std::vector<ObjectId> ids = scene->wake_set();
+  wake_size.store(static_cast<std::uint32_t>(ids.size()), std::memory_order_relaxed);
+  if (metrics) metrics->wake_size(ids.size());
+  if (wake && wake->ids == ids) return;
+  auto snap = std::make_shared<WakeSnapshot>();
+  snap->version = wake ? wake->version + 1 : 1;
+  snap->ids = std::move(ids);
+  wake = snap;
+  for (const auto& sink : sinks) {
+    std::lock_guard<std::mutex> sink_lock(sink->mu);
+    if (sink->reactor) deliver_wake(sink->reactor, wake);
+  }
+}
+
+void SceneEntry::after_frame(const FrameResult& result) {
+  frames_served.fetch_add(1, std::memory_order_relaxed);
+  tbvs_active.store(result.stats.tbvs_active, std::memory_order_relaxed);
+  if (metrics) metrics->tbvs_active(result.stats.tbvs_active);
+  store_max(time, result.t);
+  refresh_wake();
+}
+
+void SceneEntry::after_moves(double at) {
+  store_max(time, at);
+  store_max(sim_time, at);
+  sim_clock_set = true;
+}
+
+double SceneEntry::view_time(double t, double lead) const {
+  return std::fmin(t, sim_time.load(std::memory_order_relaxed) + lead);
+}
+
+void SceneEntry::subscribe(const std::shared_ptr<WakeSink>& sink) {
+  refresh_wake();
+  std::lock_guard<std::mutex> lock(wake_mu);
+  sinks.push_back(sink);
+  std::lock_guard<std::mutex> sink_lock(sink->mu);
+  if (sink->reactor) deliver_wake(sink->reactor, wake);  // The whole list first.
+}
+
+void SceneEntry::unsubscribe(const std::shared_ptr<WakeSink>& sink) {
+  std::lock_guard<std::mutex> lock(wake_mu);
+  sinks.erase(std::remove(sinks.begin(), sinks.end(), sink), sinks.end());
+}
+
+std::shared_ptr<const WakeSnapshot> SceneEntry::wake_now() {
+  std::lock_guard<std::mutex> lock(wake_mu);
+  return wake;
+}
+
+}  // namespace voxvis::server

@@ -1,0 +1,223 @@
+// What a scene costs (Scene::estimate's SceneCost, the figure the server's
+// memory budget counts) against what the engine really keeps: every container
+// of a built scene (Scene::Impl, by capacity) and of a worker's Scratch after
+// frames, moves and TBVs. The estimate must be at least the footprint, and
+// not wildly more.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <queue>
+#include <sstream>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+#include "engine_check.h"
+#include "scene_impl.h"
+#include "scenes.h"
+#include "voxvis/scene.h"
+
+namespace voxvis::test {
+namespace {
+
+template <class T>
+std::uint64_t bytes_of(const std::vector<T>& v) {
+  return v.capacity() * sizeof(T);
+}
+
+std::uint64_t bytes_of(const detail::IdLists& l) { return bytes_of(l.offsets) + bytes_of(l.ids); }
+
+std::uint64_t bytes_of(const std::vector<detail::Brick>& cells) {
+  std::uint64_t n = bytes_of<detail::Brick>(cells);
+  for (const detail::Brick& b : cells) n += bytes_of(b.entries);
+  return n;
+}
+
+template <class T, std::size_t N>
+std::uint64_t bytes_of(const std::array<T, N>& levels) {
+  std::uint64_t n = 0;
+  for (const T& l : levels) n += bytes_of(l);
+  return n;
+}
+
+/// A hash map's buckets and nodes (libstdc++: a node is the next pointer and
+/// the value, rounded up to the allocator's 16 bytes).
+template <class M>
+std::uint64_t bytes_of_map(const M& m) {
+  const std::uint64_t node = (sizeof(void*) + sizeof(typename M::value_type) + 15) / 16 * 16;
+  return m.bucket_count() * sizeof(void*) + m.size() * node;
+}
+
+/// The expiry queue's container (a protected member, read through a derived
+/// class's pointer to it).
+std::uint64_t bytes_of_queue(const decltype(Scene::Impl::expiry)& q) {
+  using Queue = std::remove_cvref_t<decltype(q)>;
+  struct Peek : Queue {
+    static const typename Queue::container_type& of(const Queue& from) { return from.*(&Peek::c); }
+  };
+  return bytes_of(Peek::of(q));
+}
+
+/// What a built scene keeps, bytes, item by item (for failure messages).
+struct Footprint {
+  std::uint64_t total = 0;
+  std::ostringstream items;
+  void add(const char* name, std::uint64_t bytes) {
+    total += bytes;
+    if (bytes) items << " " << name << "=" << bytes;
+  }
+};
+
+/// Every container of the scene (viewers' PVSs aside: they are the calls'
+/// memory, one PVS a viewer, not the scene's).
+std::uint64_t scene_footprint(const Scene::Impl& s, std::string* detail = nullptr) {
+  Footprint f;
+  f.add("objs", bytes_of(s.objs));
+  f.add("slot_of", bytes_of_map(s.slot_of));
+  f.add("vflags", bytes_of(s.vflags));
+  f.add("static_lists", bytes_of(s.static_lists));
+  f.add("static_mask", bytes_of(s.static_mask));
+  f.add("brick_static", bytes_of(s.brick_static));
+  f.add("brick_boxes", bytes_of(s.brick_boxes));
+  f.add("opaque_boxes", bytes_of(s.opaque_boxes));
+  f.add("opaque_owner", bytes_of(s.opaque_owner));
+  f.add("bricks", bytes_of(s.bricks));
+  f.add("coarse_dyn", bytes_of(s.coarse_dyn));
+  f.add("dyn_count", bytes_of(s.dyn_count));
+  f.add("dyn_mask", bytes_of(s.dyn_mask));
+  f.add("seen_at", bytes_of(s.seen_at));
+  f.add("seen_mask", bytes_of(s.seen_mask));
+  f.add("cell_seen_at", bytes_of(s.cell_seen_at));
+  f.add("cell_any_seen_at", bytes_of(s.cell_any_seen_at));
+  f.add("outside", bytes_of(s.outside_objs) + bytes_of(s.outside_tbvs));
+  f.add("expiry", bytes_of_queue(s.expiry));
+  f.add("queues", bytes_of(s.unclaimed) + bytes_of(s.queued_reveals) + bytes_of(s.pending_wake));
+  if (detail) *detail = f.items.str();
+  return f.total;
+}
+
+/// A worker's Scratch after serving the scene, its occlusion buffer aside
+/// (sized by the camera's width, not by the scene).
+std::uint64_t scratch_footprint(Scratch& scratch, std::string* detail = nullptr) {
+  const Scratch::Impl& w = scratch.impl();
+  Footprint f;
+  f.add("stamp", bytes_of(w.stamp));
+  f.add("obj_mark", bytes_of(w.obj_mark));
+  f.add("obj_seen", bytes_of(w.obj_seen));
+  f.add("pvs", bytes_of(w.pvs));
+  f.add("reveals", bytes_of(w.reveals) + bytes_of(w.deferred));
+  f.add("box_seen", bytes_of(w.box_seen));
+  f.add("seen_vox", bytes_of(w.seen_vox));
+  f.add("seen_list", bytes_of(w.seen_list));
+  f.add("seen_cells", bytes_of(w.seen_cells));
+  f.add("cell_seen", bytes_of(w.cell_seen));
+  if (detail) *detail = f.items.str();
+  return f.total;
+}
+
+/// What check_within_estimate found: the estimate, and the largest
+/// footprints of the scene and of the scratch.
+struct Measured {
+  SceneCost cost;
+  std::uint64_t scene = 0;
+  std::uint64_t scratch = 0;
+};
+
+/// Builds `d`, serves `frames` frames of a camera path from two viewers on
+/// one Scratch, moving the dynamic objects `dt` seconds between frames (so
+/// that they cross cells and TBVs come and go), and checks after each that
+/// the scene and the scratch are within the estimate.
+void check_within_estimate(const SceneDesc& d, const SceneOptions& options, std::uint64_t seed, int frames, double dt,
+                           const std::string& label, Measured* m) {
+  ASSERT_TRUE(Scene::estimate(d, options, &m->cost).ok) << label;
+  std::unique_ptr<Scene> scene;
+  ASSERT_TRUE(Scene::create(d, options, &scene).ok) << label;
+  std::string detail;
+  m->scene = scene_footprint(scene->impl(), &detail);
+  ASSERT_LE(m->scene, m->cost.bytes) << label << " as built:" << detail;
+  Scratch scratch;
+  const ViewerId viewers[2] = {scene->add_viewer(), scene->add_viewer()};
+  const std::vector<Camera> path = random_camera_path(d, seed, CameraPathParams{frames});
+  Mover mover(d, seed);
+  FrameResult result;
+  double t = 0.0;
+  for (int i = 0; i < frames; ++i) {
+    t += dt;
+    ASSERT_TRUE(scene->apply_moves(t, mover.step(dt)).ok) << label;
+    for (int v = 0; v < 2; ++v) {
+      const Camera& cam = path[static_cast<std::size_t>(v == 0 ? i : frames - 1 - i)];
+      ASSERT_TRUE(scene->frame(viewers[v], cam, t, scratch, &result).ok) << label;
+    }
+    const std::uint64_t kept = scene_footprint(scene->impl(), &detail);
+    ASSERT_LE(kept, m->cost.bytes) << label << " frame " << i << ":" << detail;
+    m->scene = std::max(m->scene, kept);
+    const std::uint64_t work = scratch_footprint(scratch, &detail);
+    ASSERT_LE(work, m->cost.scratch_bytes) << label << " frame " << i << " scratch:" << detail;
+    m->scratch = std::max(m->scratch, work);
+  }
+}
+
+SceneOptions with_buffer(bool on) { return on ? SceneOptions{} : buffer_off(); }
+
+std::string buffer_text(bool on) { return on ? " buffer on" : " buffer off"; }
+
+TEST(SceneMemory, TheEstimateHoldsEveryRandomSceneWithAndWithoutTheBuffer) {
+  for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(scaled(12)); ++seed)
+    for (const bool buffer : {true, false}) {
+      const SceneDesc d = random_scene(random_scene_params(seed), seed);
+      const std::string label = describe_scene(d, seed) + buffer_text(buffer);
+      Measured m;
+      check_within_estimate(d, with_buffer(buffer), seed, 20, 0.1, label, &m);
+      if (HasFatalFailure()) return;
+      // Close to it as well: a budget's figure, high by a small factor (and
+      // a constant 64 KiB), not by orders.
+      EXPECT_LE(m.cost.bytes, 3 * m.scene + (std::uint64_t{1} << 16)) << label << ": kept " << m.scene;
+    }
+}
+
+TEST(SceneMemory, TheEstimateHoldsManyDynamicObjectsCrossingCellsForLong) {
+  // Fast objects on small grids, for many frames: every brick sees many
+  // entries come and go, and keeps the stale ones its list holds until it
+  // drops them.
+  for (std::uint64_t seed = 20; seed < 20 + static_cast<std::uint64_t>(scaled(4)); ++seed)
+    for (const bool buffer : {true, false}) {
+      RandomSceneParams p = random_scene_params(seed);
+      p.dynamic_fraction = 0.9;
+      p.spheres *= 2;
+      p.max_speed *= 4.0;
+      const SceneDesc d = random_scene(p, seed);
+      Measured m;
+      check_within_estimate(d, with_buffer(buffer), seed, scaled(150), 0.1, describe_scene(d, seed) + buffer_text(buffer),
+                            &m);
+      if (HasFatalFailure()) return;
+    }
+}
+
+TEST(SceneMemory, TheEstimateHoldsObjectsCoveringTheGridAndIsCloseThere) {
+  // Spheres reaching over much of the grid: their entries go to the coarse
+  // cells of the pyramid, static and dynamic. The grid's layers and the
+  // lists dominate, and the estimate is within a third above what is kept.
+  for (const bool dyn : {false, true})
+    for (const bool buffer : {true, false}) {
+      Rng rng(31);
+      SceneDesc d;
+      d.bounds_min = Vec3(-100.0);
+      d.bounds_max = Vec3(100.0);
+      for (int i = 0; i < scaled(60); ++i) {
+        const ObjectDesc o = sphere(static_cast<ObjectId>(i + 1), rng.in_box(Vec3(-100.0), Vec3(100.0)),
+                                    rng.uniform(5.0, 90.0));
+        d.objects.push_back(dyn && i % 2 ? dynamic(o, 10.0) : o);
+      }
+      const std::string label = std::string("huge spheres") + (dyn ? " half dynamic" : "") + buffer_text(buffer);
+      Measured m;
+      check_within_estimate(d, with_buffer(buffer), 31, 15, 0.1, label, &m);
+      if (HasFatalFailure()) return;
+      EXPECT_LE(static_cast<double>(m.cost.bytes), 4.0 / 3.0 * static_cast<double>(m.scene)) << label;
+    }
+}
+
+}  // namespace
+}  // namespace voxvis::test
