@@ -275,6 +275,7 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
     }
     Entry& entry = tick_.entries[i];  // Only this job touches it until it ends.
     grpc::Status error;
+    std::optional<FrameResult> check;  // Verify mode: a copy of the frame served.
     if (stopped) {
       svc_->count_dropped();
     } else if (e.deleted.load()) {
@@ -291,8 +292,17 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
         Status s = scene.frame(v.engine, entry.camera, t, scratch, &entry.result, Scene::Clock::Latest);
         return s ? grpc::Status::OK : invalid(s);
       });
-      if (error.ok()) e.after_frame(entry.result);
+      if (error.ok()) {
+        e.after_frame(entry.result);
+        if (svc_->verify_sample()) check.emplace(entry.result);
+      }
     }
+    // As View's: what the check needs is copied before mu_ is released, after
+    // which the tick may be written and the stream deleted.
+    Service* const svc = svc_;
+    const std::uint64_t tick = tick_.tick;
+    const Camera camera = entry.camera;
+    const std::string viewer = check ? client_ + " tick viewer " + std::to_string(entry.viewer) : std::string();
     bool del;
     {
       std::lock_guard<std::mutex> lock(mu_);
@@ -300,6 +310,7 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
       if (--outstanding_ == 0) finish_tick_locked();
       del = end_job_locked();
     }
+    if (check) svc->verify_served(e, viewer, tick, camera, *check);
     if (del) release();
   }
 
