@@ -559,8 +559,9 @@ std::string ids_text(const std::vector<ObjectId>& ids) {
   return out;
 }
 
-/// The dynamic objects of `scene` (ascending ids), from the `skip`-th on,
-/// at most `count`, taken from the end (`from_end`) or the middle.
+/// `count` dynamic objects of `scene` at their homes, ascending ids: the
+/// last ones (`from_end`) or those from the middle on. The loops that move
+/// objects take disjoint ones (simulations the first).
 std::vector<Move> dynamic_homes(const SceneDesc& scene, std::size_t count, bool from_end) {
   std::vector<Move> all;
   for (const ObjectDesc& o : scene.objects)

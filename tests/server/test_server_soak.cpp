@@ -128,10 +128,12 @@ std::string joined(const std::vector<std::string>& lines) {
 
 // A hostile mix (bad times, bad ids, floods, dropped streams, bad and too
 // fast moves, create/delete races, malformed bytes, extreme cameras, creates
-// of huge footprints, bursts of new streams) beside one viewer at
-// 30 Hz: the server stays up and exits cleanly, the viewer is answered to
-// its last frame, every hostile call ends with a code its kind allows, the
-// races keep their invariants, and memory stays within a bound.
+// of huge footprints, bursts of new streams, hostile tick streams) beside one
+// viewer at 30 Hz and two well-behaved tick streams: the server stays up and
+// exits cleanly, the viewer and the tick streams are answered to their last
+// frame or tick with consistent answers, no acknowledged move is lost, every
+// hostile call ends with a code its kind allows, the races keep their
+// invariants, and memory stays within a bound.
 TEST(Soak, HostileMixBesideAWellBehavedViewer) {
   // A busy position saver (the simulations move objects all the time) for
   // the create/delete races to meet.
