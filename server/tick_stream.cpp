@@ -287,11 +287,22 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
     }
     Entry& entry = tick_.entries[i];  // Only this job touches it until it ends.
     grpc::Status error;
+    std::optional<FrameResult> check;  // Verify mode: a copy of the frame served.
     if (stopped) {
       svc_->count_dropped();
     } else {
-      error = svc_->serve_frame(e, &entry.state->engine, entry.camera, tick_.t, scratch, &entry.result);
+      bool sample = false;
+      error = svc_->serve_frame(e, &entry.state->engine, entry.camera, tick_.t, scratch, &entry.result, &sample);
+      if (error.ok() && sample) check.emplace(entry.result);
     }
+    // As View's: what the check needs is copied before mu_ is released, after
+    // which the tick may be written and the stream deleted (with its hold on
+    // the scene: `keep` holds it for the check).
+    Service* const svc = svc_;
+    const std::shared_ptr<SceneEntry> keep = check ? entry_ : nullptr;
+    const std::uint64_t tick = tick_.tick;
+    const Camera camera = entry.camera;
+    const std::string viewer = check ? client_ + " tick viewer " + std::to_string(entry.viewer) : std::string();
     bool del;
     {
       std::lock_guard<std::mutex> lock(mu_);
@@ -299,6 +310,7 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
       if (--outstanding_ == 0) finish_tick_locked();
       del = end_job_locked();
     }
+    if (check) svc->verify_served(*keep, viewer, tick, camera, *check);
     if (del) release();
   }
 

@@ -4,8 +4,10 @@
 # on a Release build. One voxvis-server on loopback; one viewer at 30 Hz on a
 # lattice of 5,000 spheres, whose answer gaps are measured, beside a hostile
 # mix (bad times and ids, GetPvs floods, dropped View streams, bad and too
-# fast moves, create/delete races, malformed bytes); the server's RSS is
-# sampled every 100 ms. Then the same viewer alone, as a baseline.
+# fast moves, create/delete races, malformed bytes, extreme cameras, huge
+# creates, stream bursts, well-behaved and hostile Tick streams); the
+# server's RSS is sampled every 100 ms. Then the same viewer alone, as a
+# baseline.
 #
 #   tests/bench/run_soak.sh                          # 120 s + 120 s baseline
 #   SOAK_SECONDS=600 tests/bench/run_soak.sh

@@ -730,9 +730,11 @@ void drain(grpc::CompletionQueue& cq) {
 }  // namespace
 
 grpc::Status generic_unary(const std::shared_ptr<grpc::Channel>& channel, const std::string& method,
-                           const std::string& request, std::string* response, Seconds timeout) {
+                           const std::string& request, std::string* response, Seconds timeout,
+                           const std::string& token) {
   grpc::GenericStub stub(channel);
   grpc::ClientContext ctx;
+  if (!token.empty()) ctx.AddMetadata("authorization", "Bearer " + token);
   ctx.set_deadline(std::chrono::system_clock::now() +
                    std::chrono::duration_cast<std::chrono::milliseconds>(timeout));
   grpc::CompletionQueue cq;
@@ -755,9 +757,10 @@ grpc::Status generic_unary(const std::shared_ptr<grpc::Channel>& channel, const 
 
 grpc::Status generic_bidi(const std::shared_ptr<grpc::Channel>& channel, const std::string& method,
                           const std::string& request, std::vector<std::string>* responses,
-                          Seconds timeout) {
+                          Seconds timeout, const std::string& token) {
   grpc::GenericStub stub(channel);
   grpc::ClientContext ctx;
+  if (!token.empty()) ctx.AddMetadata("authorization", "Bearer " + token);
   ctx.set_deadline(std::chrono::system_clock::now() +
                    std::chrono::duration_cast<std::chrono::milliseconds>(timeout));
   grpc::CompletionQueue cq;

@@ -342,15 +342,16 @@ class ServerProcess {
 // Calls by method name, with serialized messages (grpc::GenericStub): for
 // services whose generated code the tests do not have (health, reflection).
 
-/// A unary call; `timeout` is the call's deadline.
+/// A unary call; `timeout` is the call's deadline; `token`, when not empty,
+/// goes as "authorization: Bearer <token>".
 grpc::Status generic_unary(const std::shared_ptr<grpc::Channel>& channel, const std::string& method,
                            const std::string& request, std::string* response,
-                           Seconds timeout = Seconds(10));
+                           Seconds timeout = Seconds(10), const std::string& token = "");
 /// A bidi-streaming call that sends one message, half-closes, and collects
 /// every answer.
 grpc::Status generic_bidi(const std::shared_ptr<grpc::Channel>& channel, const std::string& method,
                           const std::string& request, std::vector<std::string>* responses,
-                          Seconds timeout = Seconds(10));
+                          Seconds timeout = Seconds(10), const std::string& token = "");
 
 // ---------------------------------------------------------------------------
 // Scenes, cameras and conversions shared by the tests

@@ -1,12 +1,14 @@
 #include "soak.h"
 
 #include "extreme_cameras.h"
+#include "scenes.h"
 
 #include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <filesystem>
 #include <functional>
+#include <iterator>
 #include <limits>
 #include <mutex>
 #include <optional>
@@ -15,13 +17,18 @@
 #include <thread>
 
 namespace voxvis::servertest {
+
+const char* const kSoakScene = "soak";
+
 namespace {
 
 using Clock = std::chrono::steady_clock;
 using C = grpc::StatusCode;
 
-const std::string kScene = "soak";
+const std::string kScene = kSoakScene;
 const std::string kRace = "race";
+const std::string kTickStatic = "tick-static";  // No dynamic object: a PVS depends on its camera alone.
+const std::string kTickSmall = "tick-small";    // The wall scene: frames cheap enough for 1,024 viewers.
 
 // The hostile kinds, as reported.
 const char* const kBadTime = "GetPvs bad t";
@@ -41,6 +48,14 @@ const char* const kCameraBeyond = "GetPvs camera beyond bounds";
 const char* const kExtremeView = "View extreme cameras";
 const char* const kHugeCreate = "CreateScene huge footprint";
 const char* const kBurst = "View burst of new streams";
+const char* const kTickEntries = "Tick bad entries";
+const char* const kTickBadRequest = "Tick bad t or number";
+const char* const kTickTooMany = "Tick too many viewers";
+const char* const kTickFlood = "Tick flood";
+const char* const kTickCancel = "Tick cancelled mid-tick";
+const char* const kTickVanish = "Tick left to its deadline";
+const char* const kTickBadMove = "Tick bad move";
+const char* const kTickWrongRole = "Tick moves with a viewer token";
 
 double ms(Clock::duration d) { return std::chrono::duration<double, std::milli>(d).count(); }
 
@@ -107,9 +122,13 @@ struct Soak {
   Tally& tally;
   std::atomic<bool>& stop;
   Clock::time_point start;
+  /// The well-behaved tick streams' figures: tick_streams writes them.
+  std::vector<TickFigures>& ticks;
 
   /// Seconds since the start: the times the hostile calls use.
   double now_t() const { return std::chrono::duration<double>(Clock::now() - start).count(); }
+  /// A stub on a new connection with the admin's token.
+  Api api() const { return server.api(options.admin_token); }
 
   /// Runs body(round) until stopped, at most as many rounds as the duration
   /// holds pauses, pausing `pause_factor` pauses between rounds.
@@ -126,7 +145,7 @@ struct Soak {
 // --- The good viewer ------------------------------------------------------
 
 ViewerFigures run_viewer(const Soak& s) {
-  const Api api = s.server.api();
+  const Api api = s.api();
   ViewStream stream(api, kScene, v1::PVS_FULL, s.options.duration + Seconds(120));
   ViewerFigures f;
   std::mutex mu;
@@ -187,7 +206,7 @@ ViewerFigures run_viewer(const Soak& s) {
 
 void bad_times(const Soak& s) {
   s.tally.expect(kBadTime, {C::INVALID_ARGUMENT});
-  const Api api = s.server.api();
+  const Api api = s.api();
   const double bad[] = {1e308, -1e308, std::numeric_limits<double>::quiet_NaN(), 1.7e15,
                         std::numeric_limits<double>::infinity()};
   s.loop(1, [&](int) {
@@ -198,7 +217,7 @@ void bad_times(const Soak& s) {
 
 void bad_ids(const Soak& s) {
   s.tally.expect(kBadId, {C::INVALID_ARGUMENT});
-  const Api api = s.server.api();
+  const Api api = s.api();
   const std::string bad[] = {std::string(8000, 'q'), "", "../x"};
   s.loop(1, [&](int) {
     v1::GetPvsResponse r;
@@ -215,7 +234,7 @@ void bad_ids(const Soak& s) {
 void floods(const Soak& s) {
   s.tally.expect(kFlood, {C::OK, C::DEADLINE_EXCEEDED, C::CANCELLED});
   s.loop(10, [&](int round) {
-    const Api api = s.server.api();
+    const Api api = s.api();
     const Seconds deadline = round % 2 == 0 ? Seconds(0.5) : Seconds(0.05);
     PvsFlood flood(api, kScene, s.options.flood_calls, s.now_t(), orbit(s.now_t()), deadline);
     if (round % 3 == 2) {
@@ -238,7 +257,7 @@ void floods(const Soak& s) {
 void view_drops(const Soak& s) {
   s.tally.expect(kViewDrop, {C::CANCELLED, C::DEADLINE_EXCEEDED});
   s.loop(1, [&](int round) {
-    const Api api = s.server.api();
+    const Api api = s.api();
     const int how = round % 3;
     ViewStream v(api, kScene, v1::PVS_FULL, how == 2 ? Seconds(0.3) : Seconds(30));
     const double t0 = s.now_t();
@@ -274,7 +293,7 @@ void simulations(const Soak& s) {
   const std::vector<Move> bad_moves = {
       {999999, home}, {fixed->id, home}, {id, Vec3(nan, 1, 1)}, {id, Vec3(1e13, 50, 50)}};
   s.loop(2, [&](int round) {
-    const Api api = s.server.api();
+    const Api api = s.api();
     SimStream sim(api, kScene, Seconds(30));
     const double t = s.now_t();
     v1::MoveAck ack;
@@ -314,8 +333,8 @@ void races(const Soak& s) {
   s.tally.expect(kRaceCreate, {C::OK, C::ABORTED, C::ALREADY_EXISTS});
   s.tally.expect(kRaceDelete, {C::OK});
   s.tally.expect(kRaceFrame, {C::OK, C::NOT_FOUND});
-  const Api api = s.server.api();
-  const Api other = s.server.api();
+  const Api api = s.api();
+  const Api other = s.api();
   const std::string file = s.server.data_dir() + "/scenes/" + kRace + ".json";
   // Observations retried while the server sheds calls, for at most 5 s.
   const auto retried = [](const std::function<grpc::Status()>& call) {
@@ -341,7 +360,7 @@ void races(const Soak& s) {
     std::thread del([&] { deleted = other.delete_scene(kRace); });
     std::thread viewer([&] {
       v1::GetPvsResponse r;
-      frame = s.server.api().get_pvs(kRace, 0.0, wall_camera(), &r);
+      frame = s.api().get_pvs(kRace, 0.0, wall_camera(), &r);
     });
     std::this_thread::sleep_for(std::chrono::microseconds(500 * (round % 5)));
     created = api.create_scene_json(kRace, wall_scene_json());
@@ -398,9 +417,9 @@ void malformed(const Soak& s) {
     std::string response;
     std::vector<std::string> responses;
     s.tally.record(kMalformedPvs, generic_unary(channel, "/voxvis.v1.Visibility/GetPvs", bytes,
-                                                &response, Seconds(5)));
+                                                &response, Seconds(5), s.options.admin_token));
     s.tally.record(kMalformedView, generic_bidi(channel, "/voxvis.v1.Visibility/View", bytes,
-                                                &responses, Seconds(5)));
+                                                &responses, Seconds(5), s.options.admin_token));
   });
 }
 
@@ -411,7 +430,7 @@ void cameras(const Soak& s) {
   s.tally.expect(kExtremeCamera, {C::OK});
   s.tally.expect(kCameraBeyond, {C::INVALID_ARGUMENT});
   s.tally.expect(kExtremeView, {C::OK});
-  const Api api = s.server.api();
+  const Api api = s.api();
   Rng rng(s.options.seed ^ 0xca3e);
   const double beyond_fov[] = {test::kDenormal, 1e-322, 1e-300, 0.0, 180.0};
   s.loop(2, [&](int round) {
@@ -443,7 +462,7 @@ void huge_creates(const Soak& s) {
   v1::SceneDescription huge;
   to_proto(huge_footprint_scene(100000), &huge);
   s.loop(40, [&](int round) {
-    const Api admin = s.server.api();
+    const Api admin = s.api();
     grpc::ClientContext ctx;
     admin.prepare(&ctx, round % 2 ? Seconds(0.3) : Seconds(30));
     v1::CreateSceneRequest req;
@@ -459,7 +478,7 @@ void huge_creates(const Soak& s) {
 void stream_bursts(const Soak& s) {
   s.tally.expect(kBurst, {C::OK});
   s.loop(100, [&](int) {
-    const Api a = s.server.api(), b = s.server.api();
+    const Api a = s.api(), b = s.api();
     std::vector<std::unique_ptr<ViewStream>> streams;
     const double t = s.now_t();
     for (int i = 0; i < 100; ++i) {
@@ -474,6 +493,516 @@ void stream_bursts(const Soak& s) {
   });
 }
 
+// --- Tick streams -------------------------------------------------------------
+
+/// A viewer of a tick request: its id and camera.
+using TickCam = std::pair<std::uint64_t, Camera>;
+
+v1::TickRequest tick_request(const std::string& scene, v1::PvsEncoding encoding, std::uint64_t tick, double t,
+                             const std::vector<TickCam>& viewers, const std::vector<Move>& moves = {},
+                             const std::vector<std::uint64_t>& left = {}) {
+  v1::TickRequest r;
+  r.set_scene_id(scene);  // Every request names it: allowed when it matches.
+  r.set_encoding(encoding);
+  r.set_tick(tick);
+  r.set_t(t);
+  for (const Move& m : moves) {
+    v1::Move* mv = r.add_moves();
+    mv->set_id(m.id);
+    to_proto(m.center, mv->mutable_center());
+  }
+  for (const auto& [id, camera] : viewers) {
+    v1::TickViewer* v = r.add_viewers();
+    v->set_viewer(id);
+    to_proto(camera, v->mutable_camera());
+  }
+  for (std::uint64_t id : left) r.add_left(id);
+  return r;
+}
+
+/// One Tick stream on the generated stub (sync API), on the connection of
+/// `api`, with a deadline `timeout` from now.
+class TickCall {
+ public:
+  TickCall(const Api& api, Seconds timeout) {
+    api.prepare(&ctx_, timeout);
+    stream_ = api.stub().Tick(&ctx_);
+  }
+  bool send(const v1::TickRequest& r) { return stream_->Write(r); }
+  bool read(v1::TickResponse* r) { return stream_->Read(r); }
+  bool writes_done() { return stream_->WritesDone(); }
+  void cancel() { ctx_.TryCancel(); }
+  /// Half-closes, reads what is left (counted in `*drained`) and returns the
+  /// call's status.
+  grpc::Status finish(std::size_t* drained = nullptr) {
+    stream_->WritesDone();
+    v1::TickResponse r;
+    while (stream_->Read(&r))
+      if (drained) ++*drained;
+    return stream_->Finish();
+  }
+  /// The status after the reads have ended.
+  grpc::Status status() { return stream_->Finish(); }
+
+ private:
+  grpc::ClientContext ctx_;
+  std::unique_ptr<grpc::ClientReaderWriter<v1::TickRequest, v1::TickResponse>> stream_;
+};
+
+std::string ids_text(const std::vector<ObjectId>& ids) {
+  std::string out = "[";
+  for (std::size_t i = 0; i < ids.size() && i < 8; ++i) {
+    if (i > 0) out += ',';
+    out += std::to_string(ids[i]);
+  }
+  out += ids.size() > 8 ? ",...]" : "]";
+  return out;
+}
+
+/// `count` dynamic objects of `scene` at their homes, ascending ids: the
+/// last ones (`from_end`) or those from the middle on. The loops that move
+/// objects take disjoint ones (simulations the first).
+std::vector<Move> dynamic_homes(const SceneDesc& scene, std::size_t count, bool from_end) {
+  std::vector<Move> all;
+  for (const ObjectDesc& o : scene.objects)
+    if (o.dynamic) all.push_back({o.id, o.center});
+  std::sort(all.begin(), all.end(), [](const Move& a, const Move& b) { return a.id < b.id; });
+  const std::size_t from = from_end ? all.size() - std::min(count, all.size()) : all.size() / 2;
+  return {all.begin() + static_cast<std::ptrdiff_t>(from),
+          all.begin() + static_cast<std::ptrdiff_t>(std::min(all.size(), from + count))};
+}
+
+/// Where an object of a tick stream is at time t: on a circle of radius 1
+/// around its home, at 1 unit a second (the lattice's max_speed is 5).
+Vec3 circling(const Move& home, double t) {
+  const double a = t + 0.7 * home.id;
+  return home.center + Vec3(std::cos(a), 0.0, std::sin(a));
+}
+
+/// A well-behaved Tick stream: what it sends and how it checks the answers.
+struct GoodTicks {
+  std::string name;
+  std::string scene;
+  std::string token;
+  v1::PvsEncoding encoding = v1::PVS_DELTA;
+  /// Viewers 1..viewers; the last one leaves for 10 ticks in every 40 (named
+  /// in `left`) and comes back as a new viewer.
+  int viewers = 3;
+  std::vector<Move> homes;  ///< Objects of its own, moved every tick.
+  std::function<Camera(int viewer, std::uint64_t tick, double t)> camera;
+  /// Compares a viewer's PVS with GetPvs's every 10th answer (static scenes).
+  bool check_with_get_pvs = false;
+};
+
+TickFigures run_good_ticks(const Soak& s, const GoodTicks& g) {
+  TickFigures f;
+  f.name = g.name;
+  const Api api = s.server.api(g.token);
+  const Api checker = s.api();
+  TickCall call(api, s.options.duration + Seconds(120));
+  struct Sent {
+    double t = 0.0;
+    std::vector<TickCam> viewers;
+    std::vector<std::uint64_t> left;
+  };
+  // The sender writes sent, sent/last_sent and moves_sent of `f`; the reader
+  // the rest; `errors` both.
+  std::mutex mu;
+  std::map<std::uint64_t, Sent> sent;  // Guarded by mu: ticks not answered yet.
+  const auto error = [&](const std::string& e) {
+    std::lock_guard<std::mutex> lock(mu);
+    if (f.errors.size() < 10) f.errors.push_back(e);
+  };
+  std::vector<double> gaps;  // The reader's.
+  std::thread reader([&] {
+    v1::TickResponse r;
+    std::optional<Clock::time_point> previous;
+    std::map<std::uint64_t, std::vector<ObjectId>> base;  // Each viewer's PVS as last answered.
+    client::WakeTracker wake;
+    std::vector<ObjectId> pvs, added, removed, ids;
+    while (call.read(&r)) {
+      const Clock::time_point now = Clock::now();
+      if (previous) gaps.push_back(ms(now - *previous));
+      previous = now;
+      const std::string at = "tick " + std::to_string(r.tick()) + ": ";
+      if (f.answered > 0 && r.tick() <= f.last_answered) error(at + "answered after " + std::to_string(f.last_answered));
+      ++f.answered;
+      f.last_answered = r.tick();
+      f.skipped += r.ticks_skipped();
+      f.moves_applied += r.moves_applied();
+      std::string why;
+      if (r.has_wake() && !wake.apply(r.wake(), &why)) error(at + "wake list: " + why);
+      if (r.encoding() != g.encoding) error(at + "encoding " + std::to_string(r.encoding()));
+      std::optional<Sent> found;
+      {
+        std::lock_guard<std::mutex> lock(mu);
+        const auto it = sent.find(r.tick());
+        if (it != sent.end()) {
+          // The viewers named in `left` up to this tick, answered or
+          // replaced, are gone before its frames: a viewer back since is new.
+          for (auto k = sent.begin(); k != std::next(it); ++k)
+            for (std::uint64_t id : k->second.left) base.erase(id);
+          found = std::move(it->second);
+          sent.erase(sent.begin(), std::next(it));
+        }
+      }
+      if (!found) {
+        error(at + "never sent, or answered twice");
+        continue;
+      }
+      const Sent& tick = *found;
+      if (r.answers_size() != static_cast<int>(tick.viewers.size())) {
+        error(at + std::to_string(r.answers_size()) + " answers to " + std::to_string(tick.viewers.size()) + " viewers");
+        continue;
+      }
+      for (int i = 0; i < r.answers_size(); ++i) {
+        const v1::TickAnswer& a = r.answers(i);
+        const auto& [id, camera] = tick.viewers[static_cast<std::size_t>(i)];
+        const std::string who = at + "viewer " + std::to_string(id) + ": ";
+        if (a.viewer() != id) error(who + "answered as viewer " + std::to_string(a.viewer()));
+        if (a.has_error()) {
+          error(who + "refused: " + a.error().field() + ": " + a.error().description());
+          continue;
+        }
+        ++f.viewer_answers;
+        if (!client::ids_from_proto(a.wake(), &ids, &why)) error(who + "wake: " + why);
+        if (g.encoding == v1::PVS_FULL) {
+          if (!client::ids_from_proto(a.pvs(), &pvs, &why)) error(who + "pvs: " + why);
+        } else {
+          if (!client::ids_from_proto(a.added(), &added, &why) || !client::ids_from_proto(a.removed(), &removed, &why))
+            error(who + "delta: " + why);
+          if (a.has_pvs() && (a.pvs().gaps_size() > 0 || !a.pvs().bits().empty())) error(who + "a full PVS in a delta");
+          const std::vector<ObjectId>& was = base[id];
+          ids.clear();
+          std::set_intersection(added.begin(), added.end(), was.begin(), was.end(), std::back_inserter(ids));
+          if (!ids.empty()) error(who + "adds ids it had: " + ids_text(ids));
+          ids.clear();
+          std::set_difference(removed.begin(), removed.end(), was.begin(), was.end(), std::back_inserter(ids));
+          if (!ids.empty()) error(who + "removes ids it did not have: " + ids_text(ids));
+          ids.clear();
+          std::set_difference(was.begin(), was.end(), removed.begin(), removed.end(), std::back_inserter(ids));
+          pvs.clear();
+          std::set_union(ids.begin(), ids.end(), added.begin(), added.end(), std::back_inserter(pvs));
+        }
+        if (pvs.size() != a.stats().pvs_size())
+          error(who + "a PVS of " + std::to_string(pvs.size()) + " ids, stats.pvs_size " +
+                std::to_string(a.stats().pvs_size()));
+        base[id] = pvs;
+        if (g.check_with_get_pvs && f.viewer_answers % 10 == 1) {
+          v1::GetPvsResponse full;
+          const grpc::Status st = checker.get_pvs(g.scene, tick.t, camera, &full);
+          if (st.ok()) {
+            ++f.pvs_checked;
+            const std::vector<ObjectId> expected = ids_of(full.pvs());
+            if (expected != pvs)
+              error(who + "PVS " + ids_text(pvs) + " of " + std::to_string(pvs.size()) + " ids, GetPvs " +
+                    ids_text(expected) + " of " + std::to_string(expected.size()));
+          } else if (st.error_code() != C::RESOURCE_EXHAUSTED) {
+            error(who + "GetPvs for the check: " + code_name(st.error_code()) + " " + st.error_message());
+          }
+        }
+      }
+    }
+  });
+  const auto period = std::chrono::duration_cast<Clock::duration>(Seconds(1.0 / s.options.tick_hz));
+  Clock::time_point next = Clock::now();
+  std::map<ObjectId, Vec3> centres;
+  const auto present = [](int v, int last, std::uint64_t tick) { return v != last || (tick / 10) % 4 != 3; };
+  for (std::uint64_t tick = 1; !s.stop.load(); ++tick) {
+    std::this_thread::sleep_until(next);
+    next += period;
+    const double t = s.now_t();
+    Sent out;
+    out.t = t;
+    for (int v = 1; v <= g.viewers; ++v) {
+      if (present(v, g.viewers, tick)) {
+        out.viewers.emplace_back(static_cast<std::uint64_t>(v), g.camera(v, tick, t));
+      } else if (present(v, g.viewers, tick - 1)) {
+        out.left.push_back(static_cast<std::uint64_t>(v));
+      }
+    }
+    std::vector<Move> moves;
+    for (const Move& home : g.homes) moves.push_back({home.id, circling(home, t)});
+    const v1::TickRequest request = tick_request(g.scene, g.encoding, tick, t, out.viewers, moves, out.left);
+    {
+      std::lock_guard<std::mutex> lock(mu);
+      sent[tick] = std::move(out);
+    }
+    if (!call.send(request)) {
+      error("the write of tick " + std::to_string(tick) + " failed");
+      break;
+    }
+    f.sent = f.last_sent = tick;
+    f.moves_sent += moves.size();
+    for (const Move& m : moves) centres[m.id] = m.center;
+  }
+  call.writes_done();
+  reader.join();
+  const grpc::Status status = call.status();
+  if (!status.ok()) error("the stream ended " + code_name(status.error_code()) + ": " + status.error_message());
+  for (const auto& [id, centre] : centres) f.final_centres.push_back({id, centre});
+  f.gaps = spread(std::move(gaps));
+  return f;
+}
+
+/// The viewer `v`'s camera on the viewer's scene: viewers 1 and 2 orbit it
+/// (2 half a turn behind), the others look around from its middle.
+Camera soak_tick_camera(int v, std::uint64_t, double t) {
+  if (v == 1) return orbit(t);
+  if (v == 2) return orbit(t + 10.5);
+  return look(Vec3(50.0 + v, 50.0, 50.0), Vec3(std::cos(0.5 * t), 0.2, std::sin(0.5 * t)));
+}
+
+/// The hostile tick streams, each its own kind, in turn: a round of each
+/// opens a stream of its own on a connection of its own.
+void hostile_ticks(const Soak& s) {
+  s.tally.expect(kTickEntries, {C::OK});
+  s.tally.expect(kTickBadRequest, {C::INVALID_ARGUMENT});
+  s.tally.expect(kTickTooMany, {C::INVALID_ARGUMENT});
+  s.tally.expect(kTickFlood, {C::OK});
+  s.tally.expect(kTickCancel, {C::CANCELLED});
+  s.tally.expect(kTickVanish, {C::DEADLINE_EXCEEDED, C::CANCELLED});
+  s.tally.expect(kTickBadMove, {C::INVALID_ARGUMENT});
+  s.tally.expect(kTickWrongRole, {C::PERMISSION_DENIED});
+  const std::vector<ObjectDesc>& objects = s.scene.objects;
+  const auto fixed = std::find_if_not(objects.begin(), objects.end(), [](const ObjectDesc& o) { return o.dynamic; });
+  const std::vector<Move> movers = dynamic_homes(s.scene, 6, false);
+  if (fixed == objects.end() || movers.size() < 6)
+    return s.tally.note(kTickBadMove, "the scene needs static objects and 6 dynamic ones");
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const auto moved = [&](double t) {
+    std::vector<Move> m;
+    for (const Move& home : movers) m.push_back({home.id, circling(home, t)});
+    return m;
+  };
+  const auto cams = [](double t, int n, std::uint64_t first = 1) {
+    std::vector<TickCam> v;
+    for (int i = 0; i < n; ++i) v.emplace_back(first + static_cast<std::uint64_t>(i), orbit(t + 2.0 * i));
+    return v;
+  };
+  // A round's observations, kept unless its stream was shed as busy.
+  std::vector<std::string> wrong;
+  const auto record = [&](const char* kind, const grpc::Status& status) {
+    s.tally.record(kind, status);
+    if (status.error_code() != C::RESOURCE_EXHAUSTED)
+      for (const std::string& w : wrong) s.tally.note(kind, w);
+    wrong.clear();
+  };
+  // The refusal names `field` (its text starts "field: ").
+  const auto names = [&](const grpc::Status& st, const std::string& field) {
+    if (st.error_code() == C::INVALID_ARGUMENT && st.error_message().rfind(field + ": ", 0) != 0)
+      wrong.push_back("refused without naming " + field + ": " + st.error_message());
+  };
+  s.loop(2, [&](int round) {
+    const Api api = s.api();
+    const double t = s.now_t();
+    v1::TickResponse r;
+    switch (round % 8) {
+      case 0: {
+        // Bad cameras and a viewer id given twice, among good entries: those
+        // entries refused naming their field, the others answered.
+        TickCall call(api, Seconds(30));
+        for (std::uint64_t tick = 1; tick <= 3; ++tick) {
+          std::vector<TickCam> v = cams(t, 6);
+          v[1].second.fov_y_deg = 190.0;
+          v[2].first = v[0].first;
+          v[3].second.eye.x = nan;
+          v[4].second.dir = Vec3(0.0);
+          const std::vector<std::string> fields = {"", "viewers[1].camera.fov_y_deg", "viewers[2].viewer",
+                                                   "viewers[3].camera.eye", "viewers[4].camera.dir", ""};
+          if (!call.send(tick_request(kScene, v1::PVS_DELTA, tick, t + 0.01 * static_cast<double>(tick), v)) || !call.read(&r)) {
+            wrong.push_back("tick " + std::to_string(tick) + " was not answered");
+            break;
+          }
+          for (int i = 0; i < r.answers_size() && i < 6; ++i) {
+            if (r.answers(i).error().field() != fields[static_cast<std::size_t>(i)])
+              wrong.push_back("entry " + std::to_string(i) + " of tick " + std::to_string(tick) + ": error '" +
+                              r.answers(i).error().field() + "', not '" + fields[static_cast<std::size_t>(i)] + "'");
+          }
+          if (r.answers_size() != 6) wrong.push_back(std::to_string(r.answers_size()) + " answers to 6 entries");
+        }
+        record(kTickEntries, call.finish());
+        break;
+      }
+      case 1: {
+        // A good tick, then a whole request refused: a time out of range, a
+        // time that goes back, a tick number that does not increase.
+        TickCall call(api, Seconds(30));
+        const double bad_t[] = {nan, std::numeric_limits<double>::infinity(), 1e308, -1e308, 1.7e15, t - 1.0};
+        const std::size_t which = static_cast<std::size_t>(round / 8) % (std::size(bad_t) + 1);
+        const bool bad_number = which == std::size(bad_t);
+        if (!call.send(tick_request(kScene, v1::PVS_FULL, 5, t, cams(t, 2))) || !call.read(&r))
+          wrong.push_back("the good tick was not answered");
+        call.send(tick_request(kScene, v1::PVS_FULL, bad_number ? 5 : 6, bad_number ? t : bad_t[which], cams(t, 2)));
+        std::size_t drained = 0;
+        const grpc::Status st = call.finish(&drained);
+        if (drained) wrong.push_back("a bad tick was answered");
+        names(st, bad_number ? "tick" : "t");
+        record(kTickBadRequest, st);
+        break;
+      }
+      case 2: {
+        // Too many viewers in one tick, or too many ids in `left`: refused
+        // whole, naming the field. (The limit of viewers kept, 1,024
+        // answered and the next refused in its entry, is TickStream's
+        // ViewerLimits test: each viewer of a tick takes its turn in the
+        // pool's fair queue, so beside the mix a tick of 1,024 viewers takes
+        // seconds, however cheap its frames.)
+        TickCall call(api, Seconds(30));
+        const bool left = (round / 8) % 2 == 1;
+        std::vector<TickCam> many = cams(0.0, left ? 1 : 1025);
+        for (auto& [id, camera] : many) camera = wall_camera();
+        std::vector<std::uint64_t> gone;
+        if (left)
+          for (std::uint64_t id = 0; id < 1025; ++id) gone.push_back(id);
+        call.send(tick_request(kTickSmall, v1::PVS_DELTA, 1, 0.0, many, {}, gone));
+        std::size_t drained = 0;
+        const grpc::Status st = call.finish(&drained);
+        if (drained) wrong.push_back("a tick of 1,025 viewers or left ids was answered");
+        names(st, left ? "left" : "viewers");
+        record(kTickTooMany, st);
+        break;
+      }
+      case 3: {
+        // A flood: 40 ticks of 3 viewers, every 8th with 6 moves, written
+        // before any answer is read. Latest tick wins; no move is lost; the
+        // last tick is answered. (Moves on every tick would make it a slow
+        // crawl: the server reads on only while at most 4 move batches wait,
+        // and they wait for the tick that computes.)
+        TickCall call(api, Seconds(60));
+        constexpr std::uint64_t kTicks = 40;
+        std::uint64_t moves_sent = 0, written = 0;
+        for (std::uint64_t tick = 1; tick <= kTicks; ++tick) {
+          const double at = t + 0.002 * static_cast<double>(tick);
+          const std::vector<Move> m = tick % 8 == 1 ? moved(at) : std::vector<Move>{};
+          if (!call.send(tick_request(kScene, v1::PVS_DELTA, tick, at, cams(at, 3), m))) break;
+          moves_sent += m.size();
+          written = tick;
+        }
+        call.writes_done();
+        std::uint64_t answered = 0, skipped = 0, applied = 0, last = 0;
+        while (call.read(&r)) {
+          if (answered > 0 && r.tick() <= last) wrong.push_back("tick " + std::to_string(r.tick()) + " after " + std::to_string(last));
+          ++answered;
+          last = r.tick();
+          skipped += r.ticks_skipped();
+          applied += r.moves_applied();
+          if (r.answers_size() != 3) wrong.push_back(std::to_string(r.answers_size()) + " answers to 3 viewers");
+          for (const v1::TickAnswer& a : r.answers())
+            if (a.has_error()) wrong.push_back("a good entry refused: " + a.error().field());
+        }
+        const grpc::Status st = call.status();
+        if (st.ok()) {
+          if (written != kTicks) wrong.push_back("only " + std::to_string(written) + " ticks written");
+          if (last != written) wrong.push_back("the last tick answered is " + std::to_string(last));
+          if (answered + skipped != written)
+            wrong.push_back(std::to_string(answered) + " answered + " + std::to_string(skipped) + " skipped of " +
+                            std::to_string(written));
+          if (applied != moves_sent)
+            wrong.push_back(std::to_string(applied) + " moves applied of " + std::to_string(moves_sent));
+        }
+        record(kTickFlood, st);
+        break;
+      }
+      case 4: {
+        // Cancelled while its tick of 12 viewers computes (or waits), after
+        // 0 to 30 ms; every other time after one answer and a second tick.
+        TickCall call(api, Seconds(30));
+        call.send(tick_request(kScene, v1::PVS_FULL, 1, t, cams(t, 12)));
+        if (round % 16 == 4 && call.read(&r)) call.send(tick_request(kScene, v1::PVS_FULL, 2, t + 0.01, cams(t, 12)));
+        std::this_thread::sleep_for(std::chrono::milliseconds(10 * ((round / 8) % 4)));
+        call.cancel();
+        record(kTickCancel, call.finish());
+        break;
+      }
+      case 5: {
+        // Five ticks of 8 viewers, never read, left to a 0.3 s deadline: the
+        // client gone as far as the server can tell.
+        TickCall call(api, Seconds(0.3));
+        for (std::uint64_t tick = 1; tick <= 5; ++tick)
+          if (!call.send(tick_request(kScene, v1::PVS_DELTA, tick, t + 0.001 * static_cast<double>(tick), cams(t, 8)))) break;
+        std::this_thread::sleep_for(std::chrono::milliseconds(400));
+        record(kTickVanish, call.finish());
+        break;
+      }
+      case 6: {
+        // A good tick with moves, then one whose moves name an unknown id, a
+        // static object's, or a bad centre (the last of 6 moves): the stream
+        // ends naming moves[5], and that tick is not answered.
+        TickCall call(api, Seconds(30));
+        if (!call.send(tick_request(kScene, v1::PVS_FULL, 1, t, cams(t, 2), moved(t))) || !call.read(&r))
+          wrong.push_back("the good tick was not answered");
+        std::vector<Move> bad = moved(t + 0.01);
+        const int how = (round / 8) % 4;
+        const Move last[] = {{999999, bad[5].center}, {fixed->id, fixed->center}, {bad[5].id, Vec3(nan, 1, 1)},
+                             {bad[5].id, Vec3(1e13, 50, 50)}};
+        bad[5] = last[how];
+        call.send(tick_request(kScene, v1::PVS_FULL, 2, t + 0.01, cams(t, 2), bad));
+        std::size_t drained = 0;
+        const grpc::Status st = call.finish(&drained);
+        if (drained) wrong.push_back("a tick with a bad move was answered");
+        names(st, how < 2 ? "moves[5].id" : "moves[5].center");
+        record(kTickBadMove, st);
+        break;
+      }
+      default: {
+        // A viewer's token: ticks without moves answered, one with moves
+        // refused.
+        TickCall call(s.server.api(s.options.viewer_token), Seconds(30));
+        if (!call.send(tick_request(kScene, v1::PVS_DELTA, 1, t, cams(t, 2))) || !call.read(&r))
+          wrong.push_back("a viewer's tick without moves was not answered");
+        call.send(tick_request(kScene, v1::PVS_DELTA, 2, t + 0.01, cams(t, 2), moved(t + 0.01)));
+        std::size_t drained = 0;
+        const grpc::Status st = call.finish(&drained);
+        if (drained) wrong.push_back("a viewer's tick with moves was answered");
+        record(kTickWrongRole, st);
+        break;
+      }
+    }
+  });
+}
+
+/// The static scene of the well-behaved tick streams.
+SceneDesc tick_static_scene(std::uint64_t seed) {
+  test::RandomSceneParams p;
+  p.dynamic_fraction = 0.0;
+  return test::random_scene(p, seed);
+}
+
+// Two well-behaved Tick streams at once: moves of 8 objects of its own and 3
+// viewers on the viewer's scene with a simulation's token; 4 viewers on a
+// static scene with a viewer's token, checked against GetPvs.
+void tick_streams(const Soak& s) {
+  GoodTicks moving;
+  moving.name = "Tick stream with moves on '" + kScene + "'";
+  moving.scene = kScene;
+  moving.token = s.options.simulation_token;
+  moving.viewers = 3;
+  moving.homes = dynamic_homes(s.scene, 8, true);
+  moving.camera = soak_tick_camera;
+  GoodTicks still;
+  still.name = "Tick stream on '" + kTickStatic + "'";
+  still.scene = kTickStatic;
+  still.token = s.options.viewer_token;
+  still.viewers = 4;
+  const SceneDesc scene = tick_static_scene(s.options.seed);
+  test::CameraPathParams cp;
+  cp.frames = 300;
+  std::vector<std::vector<Camera>> paths;
+  for (int v = 1; v <= still.viewers; ++v)
+    paths.push_back(test::random_camera_path(scene, test::mix_seed(s.options.seed, static_cast<std::uint64_t>(v)), cp));
+  still.camera = [&paths](int v, std::uint64_t tick, double) {
+    const std::vector<Camera>& path = paths[static_cast<std::size_t>(v - 1)];
+    return path[tick % path.size()];
+  };
+  still.check_with_get_pvs = true;
+  TickFigures a, b;
+  std::thread other([&] { b = run_good_ticks(s, still); });
+  a = run_good_ticks(s, moving);
+  other.join();
+  s.ticks = {std::move(a), std::move(b)};
+}
+
 struct Loop {
   const char* name;
   void (*run)(const Soak&);
@@ -482,11 +1011,17 @@ const Loop kLoops[] = {{"bad-times", bad_times},     {"bad-ids", bad_ids},
                        {"floods", floods},           {"view-drops", view_drops},
                        {"simulations", simulations}, {"races", races},
                        {"malformed", malformed},     {"cameras", cameras},
-                       {"huge-creates", huge_creates}, {"stream-bursts", stream_bursts}};
+                       {"huge-creates", huge_creates}, {"stream-bursts", stream_bursts},
+                       {"tick-streams", tick_streams}, {"hostile-ticks", hostile_ticks}};
 
 double mib(long kib) { return static_cast<double>(kib) / 1024.0; }
 
 }  // namespace
+
+std::string soak_tokens_file(const SoakOptions& options) {
+  return "admin " + options.admin_token + "\nsimulation " + options.simulation_token + "\nviewer " +
+         options.viewer_token + "\n";
+}
 
 std::vector<std::string> all_hostile_loops() {
   std::vector<std::string> names;
@@ -515,11 +1050,13 @@ SoakResult run_soak(const ServerProcess& server, const SoakOptions& options) {
   for (const std::string& name : options.mix) result.mix += (result.mix.empty() ? "" : ",") + name;
   const SceneDesc scene = lattice_scene(options.objects, options.grid, options.seed);
   {
-    const Api admin = server.api();
-    v1::SceneDescription d;
+    const Api admin = server.api(options.admin_token);
+    v1::SceneDescription d, still;
     to_proto(scene, &d);
+    to_proto(tick_static_scene(options.seed), &still);
     for (const grpc::Status& st :
-         {admin.create_scene(kScene, d), admin.create_scene_json(kRace, wall_scene_json())}) {
+         {admin.create_scene(kScene, d), admin.create_scene_json(kRace, wall_scene_json()),
+          admin.create_scene(kTickStatic, still), admin.create_scene_json(kTickSmall, wall_scene_json())}) {
       if (!st.ok()) {
         ADD_FAILURE() << "the soak's scenes: " << code_name(st.error_code()) << " "
                       << st.error_message();
@@ -529,7 +1066,7 @@ SoakResult run_soak(const ServerProcess& server, const SoakOptions& options) {
   }
   Tally tally;
   std::atomic<bool> stop{false}, stop_sampling{false};
-  const Soak s{server, options, scene, tally, stop, Clock::now()};
+  const Soak s{server, options, scene, tally, stop, Clock::now(), result.ticks};
   long rss_last = server.rss_kib();
   long rss_peak = rss_last;
   result.rss_start_mib = mib(rss_last);
@@ -559,7 +1096,7 @@ SoakResult run_soak(const ServerProcess& server, const SoakOptions& options) {
   result.seconds = std::chrono::duration<double>(Clock::now() - s.start).count();
 
   v1::GetPvsResponse r;
-  const grpc::Status fresh = server.api().get_pvs(kScene, 0.0, orbit(0), &r);
+  const grpc::Status fresh = server.api(options.admin_token).get_pvs(kScene, 0.0, orbit(0), &r);
   result.answering_at_end = fresh.ok();
   result.answering_status = code_name(fresh.error_code()) +
                             (fresh.ok() ? "" : ": " + fresh.error_message());

@@ -21,10 +21,23 @@
 //    is served exactly when it is listed and its file exists, and it is
 //    served exactly when the create was acknowledged (or the delete shed);
 //  * malformed protobuf bytes to GetPvs and View (generic calls);
+//  * well-behaved Tick streams, checked like the viewer: one with moves of
+//    objects of its own and three viewers on the viewer's scene, one of
+//    four viewers on a static scene whose PVSs are compared with GetPvs's;
+//    both in deltas, one viewer of each leaving and coming back;
+//  * hostile Tick streams: bad cameras and viewer ids given twice among good
+//    entries, bad times, too many viewers, floods of ticks never read until
+//    the last is sent, streams cancelled mid-tick or left to their deadline,
+//    moves of unknown or static objects or to bad centres, moves with a
+//    viewer's token;
 //  * the server's RSS, sampled every `sample_period`.
 // Outcomes are counted by kind and status code; a code outside a kind's
 // expected set is kept (with its message) as unexpected. Every set admits
 // RESOURCE_EXHAUSTED: a busy server may shed any call (--max-calls).
+//
+// The server runs with --tokens (soak_tokens_file): the calls send the
+// admin's token, but for the tick streams, which send a viewer's or a
+// simulation's, as their role allows.
 #pragma once
 
 #include <cstdint>
@@ -37,8 +50,9 @@
 
 namespace voxvis::servertest {
 
-/// The names of the hostile loops: bad-times, bad-ids, floods, view-drops,
-/// simulations, races, malformed, cameras, huge-creates, stream-bursts.
+/// The names of the loops of the mix: bad-times, bad-ids, floods, view-drops,
+/// simulations, races, malformed, cameras, huge-creates, stream-bursts,
+/// tick-streams (the well-behaved ones), hostile-ticks.
 std::vector<std::string> all_hostile_loops();
 
 struct SoakOptions {
@@ -59,7 +73,16 @@ struct SoakOptions {
   std::vector<std::string> mix = all_hostile_loops();
   /// Pause between two rounds of a hostile kind (floods wait 10 times longer).
   Seconds pause{0.005};
+  /// Ticks a second of the well-behaved Tick streams.
+  double tick_hz = 15.0;
+  /// Bearer tokens, one a role (soak_tokens_file grants them).
+  std::string admin_token = "soak-admin-token-0123456789abcdef";
+  std::string simulation_token = "soak-simulation-token-0123456789abcdef";
+  std::string viewer_token = "soak-viewer-token-0123456789abcdef";
 };
+
+/// The text of a --tokens file granting `options`' tokens their roles.
+std::string soak_tokens_file(const SoakOptions& options);
 
 /// Outcomes of one kind of hostile call. The races' invariants broken are
 /// kept as unexpected observations of "CreateScene racing".
@@ -91,10 +114,39 @@ struct ViewerFigures {
   Spread gaps, round_trip, engine;
 };
 
+/// A well-behaved Tick stream. `errors` holds what went wrong (first few):
+/// a broken write, the stream's status when not OK, and answers that do not
+/// fit what was sent (a tick number that does not increase or was not sent,
+/// entries not in the request's order or refused, a delta that removes an id
+/// its viewer did not have or adds one it had, a PVS whose size is not its
+/// stats' pvs_size, an IdSet or wake list that does not decode, a PVS unlike
+/// GetPvs's for the same camera).
+struct TickFigures {
+  std::string name;
+  std::uint64_t sent = 0, answered = 0;
+  /// Sum of the answers' ticks_skipped (ticks replaced by newer ones).
+  std::uint64_t skipped = 0;
+  std::uint64_t last_sent = 0, last_answered = 0;
+  std::uint64_t viewer_answers = 0;  ///< Entries answered, over all ticks.
+  /// Moves sent, and the sum of the answers' moves_applied.
+  std::uint64_t moves_sent = 0, moves_applied = 0;
+  /// Viewers' PVSs compared with a GetPvs of the same camera (a static
+  /// scene's PVS depends on the camera alone).
+  std::uint64_t pvs_checked = 0;
+  std::vector<std::string> errors;
+  /// Where the stream's moves left its objects (ascending ids): the last
+  /// answer acknowledged them, so the positions saved at shutdown hold them.
+  std::vector<Move> final_centres;
+  /// Time between consecutive answers.
+  Spread gaps;
+};
+
 struct SoakResult {
   double seconds = 0;  ///< How long the mix ran.
   std::string mix;     ///< The hostile loops that ran, separated by commas.
   ViewerFigures viewer;
+  /// The well-behaved Tick streams (when "tick-streams" ran).
+  std::vector<TickFigures> ticks;
   std::map<std::string, HostileKind> hostile;
   double rss_start_mib = 0, rss_peak_mib = 0, rss_end_mib = 0;
   int rss_samples = 0;
@@ -106,9 +158,14 @@ struct SoakResult {
 /// The name of a status code ("INVALID_ARGUMENT").
 std::string code_name(grpc::StatusCode code);
 
-/// Runs the soak against a started `server`: creates the scenes "soak" (the
-/// good viewer's) and "race", runs the mix for `options.duration`, stops
-/// every thread, and measures. The server is left running.
+/// The scene of the good viewer, whose positions file the soak's test reads.
+extern const char* const kSoakScene;
+
+/// Runs the soak against a started `server` (with --tokens of
+/// soak_tokens_file(options)): creates the scenes "soak" (the good
+/// viewer's), "race", "tick-static" and "tick-small", runs the mix for
+/// `options.duration`, stops every thread, and measures. The server is left
+/// running.
 SoakResult run_soak(const ServerProcess& server, const SoakOptions& options);
 
 }  // namespace voxvis::servertest

@@ -2,8 +2,9 @@
 // both encodings) equal an in-process Scene driven by the same moves and
 // frames; several viewers of a static scene, joining and leaving, each equal
 // the engine's answers for their own cameras; a bad entry fails alone; a
-// flood of ticks is shed latest-wins without losing a move; IdSet's two
-// forms round-trip.
+// flood of ticks is shed latest-wins without losing a move; a move of an
+// unknown or static object ends the stream naming it; IdSet's two forms
+// round-trip.
 #include <algorithm>
 #include <cstdio>
 #include <map>
@@ -302,6 +303,117 @@ TEST(TickStream, AFloodIsShedLatestWinsAndNoMoveIsLost) {
   EXPECT_EQ(applied, moves_sent) << "every tick's moves are applied, answered or not";
   RecordProperty("answered", answers);
   std::printf("flood: %d of %d ticks answered\n", answers, kTicks);
+}
+
+/// The field a refusal's BadRequest names ("" when it carries none).
+std::string violated_field(const grpc::Status& st) {
+  v1::ErrorStatus details;
+  v1::BadRequest bad;
+  if (!details.ParseFromString(st.error_details()) || details.details_size() != 1 ||
+      !bad.ParseFromString(details.details(0).value()) || bad.field_violations_size() != 1)
+    return "";
+  return bad.field_violations(0).field();
+}
+
+TEST(TickStream, AMoveOfAnUnknownOrStaticObjectEndsTheStreamNamingIt) {
+  // As on Simulate: the batch is refused whole when its moves are applied,
+  // the stream ends with INVALID_ARGUMENT naming moves[3].id, and no tick
+  // from the bad one on is answered, even ticks written before it failed.
+  ServerProcess server;
+  ASSERT_TRUE(server.start());
+  const Api api = server.api();
+  test::RandomSceneParams p;
+  p.dynamic_fraction = 0.5;
+  p.max_speed = 10.0;
+  const SceneDesc desc = test::random_scene(p, 91);
+  std::vector<ObjectDesc> dynamic, fixed;
+  for (const ObjectDesc& o : desc.objects) (o.dynamic ? dynamic : fixed).push_back(o);
+  ASSERT_GE(dynamic.size(), 3u);
+  ASSERT_FALSE(fixed.empty());
+  test::CameraPathParams cp;
+  cp.frames = 1;
+  const Camera cam = test::random_camera_path(desc, 91, cp)[0];
+  ObjectId unknown = 1;
+  while (std::any_of(desc.objects.begin(), desc.objects.end(), [&](const ObjectDesc& o) { return o.id == unknown; }))
+    ++unknown;
+  struct Case {
+    const char* name;
+    Move bad;
+    const char* says;
+  };
+  const Case cases[] = {{"unknown", {unknown, dynamic[0].center}, "unknown object id "},
+                        {"static", {fixed[0].id, fixed[0].center}, " is static and cannot move"}};
+  int scene_no = 0;
+  for (const Case& c : cases) {
+    for (bool flood : {false, true}) {
+      SCOPED_TRACE(std::string(c.name) + (flood ? ", in a flood" : ", lock-step"));
+      const std::string id = "moves-" + std::to_string(scene_no++);
+      ASSERT_TRUE(api.create_scene_json(id, scene_to_json(desc)).ok());
+      // Three good moves, then the bad one: none of the tick's is applied.
+      const auto moves = [&](int tick, bool bad) {
+        std::vector<Move> m;
+        for (std::size_t k = 0; k < 3; ++k) m.push_back({dynamic[k].id, dynamic[k].center + Vec3(0.01 * tick, 0, 0)});
+        if (bad) m.push_back(c.bad);
+        return m;
+      };
+      // Ticks 1..10; tick 5 carries the bad move. Lock-step: each answer is
+      // read before the next tick is written; a flood writes all first.
+      constexpr int kBad = 5;
+      const auto client = std::make_unique<client::Client>(
+          grpc::CreateChannel(server.address(), grpc::InsecureChannelCredentials()), std::string(), server.address());
+      grpc::ClientContext ctx;
+      auto stream = client->stub().Tick(&ctx);
+      std::vector<std::uint64_t> answered;
+      std::uint64_t applied = 0;
+      v1::TickResponse resp;
+      for (int i = 1; i <= 10; ++i) {
+        v1::TickRequest r;
+        r.set_scene_id(id);
+        r.set_tick(static_cast<std::uint64_t>(i));
+        r.set_t(i / 30.0);
+        for (const Move& m : moves(i, i == kBad)) {
+          v1::Move* mv = r.add_moves();
+          mv->set_id(m.id);
+          client::to_proto(m.center, mv->mutable_center());
+        }
+        v1::TickViewer* tv = r.add_viewers();
+        tv->set_viewer(1);
+        client::to_proto(cam, tv->mutable_camera());
+        if (!stream->Write(r)) break;  // The stream has ended.
+        if (!flood && stream->Read(&resp)) {
+          answered.push_back(resp.tick());
+          applied += resp.moves_applied();
+        }
+      }
+      stream->WritesDone();
+      while (stream->Read(&resp)) {
+        answered.push_back(resp.tick());
+        applied += resp.moves_applied();
+      }
+      const grpc::Status st = stream->Finish();
+      EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << show(st);
+      EXPECT_NE(st.error_message().find("moves[3].id: "), std::string::npos) << st.error_message();
+      EXPECT_NE(st.error_message().find(c.says), std::string::npos) << st.error_message();
+      EXPECT_EQ(violated_field(st), "moves[3].id");
+      for (std::uint64_t t : answered) EXPECT_LT(t, static_cast<std::uint64_t>(kBad)) << "answered after the bad tick";
+      if (!flood) {
+        EXPECT_EQ(answered, (std::vector<std::uint64_t>{1, 2, 3, 4}));
+        EXPECT_EQ(applied, 3u * (kBad - 1));
+      }
+      // The ticks before the bad one had all their moves applied, and no
+      // other: not the bad tick's good moves, nor those of the ticks after it.
+      v1::SceneInfo info;
+      ASSERT_TRUE(api.stats(id, &info).ok());
+      EXPECT_EQ(info.moves_applied(), 3u * (kBad - 1));
+      // The scene serves on: a new stream may move the same objects.
+      client::TickSession session(*client);
+      session.open(id, v1::PVS_FULL);
+      client::TickAnswer answer;
+      EXPECT_TRUE(session.tick(1, 1.0, moves(11, false), {{1, cam}}, {}, &answer)) << session.finish().error_message();
+      EXPECT_EQ(answer.moves_applied, 3u);
+      EXPECT_TRUE(session.finish().ok());
+    }
+  }
 }
 
 TEST(TickStream, IdSetsRoundTripInTheSmallerForm) {

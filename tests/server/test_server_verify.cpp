@@ -255,6 +255,57 @@ TEST(ServerVerify, ServedFramesAreCheckedWithoutMisses) {
   EXPECT_THAT(server.log(), Not(HasSubstr("MISS")));
 }
 
+TEST(ServerVerify, TickFramesAreCheckedToo) {
+  // Each viewer's frame of a tick is a frame served: with --verify-fraction
+  // 1 every one is sampled, then checked or dropped (counted), and none
+  // misses an object.
+  ServerProcess server({"--verify-fraction", "1", "--verify-resolution", "96x54", "--metrics", "127.0.0.1:0"});
+  ASSERT_TRUE(server.start());
+  const Api api = server.api();
+  PaperSceneParams p;
+  p.objects = 400;
+  p.dynamic = 40;
+  const SceneDesc scene = make_paper_scene(p);
+  ASSERT_TRUE(api.create_scene_json("paper", scene_to_json(scene)).ok());
+  WalkthroughParams w;
+  w.frames = 10;
+  const std::vector<FrameInput> frames = make_walkthrough(scene, w);
+  constexpr std::size_t kViewers = 3;
+  client::Client client(grpc::CreateChannel(server.address(), grpc::InsecureChannelCredentials()), std::string(),
+                        server.address());
+  client::TickSession session(client);
+  session.open("paper", v1::PVS_DELTA);
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    // The walkthrough's moves; viewer v walks it 3 v frames ahead.
+    std::vector<client::TickCamera> cams;
+    for (std::size_t v = 0; v < kViewers; ++v) cams.push_back({v, frames[(i + 3 * v) % frames.size()].camera});
+    client::TickAnswer answer;
+    ASSERT_TRUE(session.tick(i + 1, frames[i].t, frames[i].moves, cams, {}, &answer))
+        << session.finish().error_message();
+    for (const auto& a : answer.viewers) ASSERT_TRUE(a.error.empty()) << a.error_field << ": " << a.error;
+  }
+  EXPECT_TRUE(session.finish().ok());
+  const double served = static_cast<double>(kViewers * frames.size());
+  const int port = server.metrics_port();
+  ASSERT_GT(port, 0);
+  std::string text;
+  const auto sampled = [&] {
+    return metric(text, "voxvis_verify_frames_total", "paper") + metric(text, "voxvis_verify_dropped_total", "paper");
+  };
+  EXPECT_TRUE(wait_until(
+      [&] {
+        text = http_get(port, "/metrics");
+        return sampled() >= served;
+      },
+      Seconds(60)))
+      << text;
+  EXPECT_EQ(sampled(), served) << "every tick viewer's frame sampled once" << text;
+  EXPECT_GE(metric(text, "voxvis_verify_frames_total", "paper"), 1.0) << text;
+  EXPECT_EQ(metric(text, "voxvis_verify_missed_objects_total", "paper"), 0.0) << text;
+  EXPECT_EQ(metric(text, "voxvis_frames_total", "paper"), served) << text;
+  EXPECT_THAT(server.log(), Not(HasSubstr("MISS")));
+}
+
 TEST(ServerVerify, BadSettingsAreStartErrors) {
   for (const std::vector<std::string>& args :
        {std::vector<std::string>{"--verify-fraction", "1.5"}, std::vector<std::string>{"--verify-fraction", "nan"},
