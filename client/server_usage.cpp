@@ -52,6 +52,8 @@ std::size_t append(char* data, std::size_t size, std::size_t n, void* out) {
 bool parse_server_usage(const std::string& text, const std::string& scene, ServerUsage* out,
                         std::string* error) {
   bool cpu = false, engine = false, frames = false;
+  bool engine_cpu = false;
+  double engine_cpu_seconds = 0.0;
   std::istringstream in(text);
   std::string line;
   while (std::getline(in, line)) {
@@ -61,10 +63,15 @@ bool parse_server_usage(const std::string& text, const std::string& scene, Serve
       out->cpu_seconds = v, cpu = true;
     } else if (sample(line, "voxvis_frame_engine_seconds_sum", &scene, &v)) {
       out->engine_seconds = v, engine = true;
+    } else if (sample(line, "voxvis_frame_engine_cpu_seconds_total", &scene, &v)) {
+      engine_cpu_seconds = v, engine_cpu = true;
     } else if (sample(line, "voxvis_frames_total", &scene, &v)) {
       out->frames = v, frames = true;
     }
   }
+  // The engine's CPU time where the server counts it; else its frames' time
+  // (which also counts waits for a core).
+  if (engine_cpu) out->engine_seconds = engine_cpu_seconds, engine = true;
   const char* missing = !cpu      ? "process_cpu_seconds_total"
                         : !engine ? "voxvis_frame_engine_seconds_sum"
                         : !frames ? "voxvis_frames_total"

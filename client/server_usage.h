@@ -10,7 +10,8 @@ namespace voxvis::cli {
 /// Counters of a server at one instant, for one scene.
 struct ServerUsage {
   double cpu_seconds = 0.0;     ///< process_cpu_seconds_total: the whole process, user + system.
-  double engine_seconds = 0.0;  ///< voxvis_frame_engine_seconds_sum{scene}: engine time of its frames.
+  double engine_seconds = 0.0;  ///< voxvis_frame_engine_cpu_seconds_total{scene}: CPU time of its frames'
+                                ///< engine calls (servers without it: voxvis_frame_engine_seconds_sum, their time).
   double frames = 0.0;          ///< voxvis_frames_total{scene}: answers computed.
 };
 

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include <sys/resource.h>
+#include <time.h>
 
 #include <prometheus/collectable.h>
 #include <prometheus/counter.h>
@@ -75,6 +76,10 @@ struct Families {
                    .Name("voxvis_frame_engine_seconds")
                    .Help("Seconds of engine time per frame")
                    .Register(r)),
+        engine_cpu(prometheus::BuildCounter()
+                       .Name("voxvis_frame_engine_cpu_seconds_total")
+                       .Help("CPU seconds worker threads spent in frames' engine calls")
+                       .Register(r)),
         pvs(prometheus::BuildHistogram()
                 .Name("voxvis_pvs_size")
                 .Help("Objects per potentially visible set")
@@ -130,6 +135,7 @@ struct Families {
   Family<Counter>& frames;
   Family<Histogram>& latency;
   Family<Histogram>& engine;
+  Family<Counter>& engine_cpu;
   Family<Histogram>& pvs;
   Family<Histogram>& voxels;
   Family<Counter>& skipped;
@@ -187,6 +193,7 @@ class PrometheusSceneMetrics final : public SceneMetrics {
     frames_ = &f.frames.Add(labels);
     latency_ = &f.latency.Add(labels, kLatencyBuckets);
     engine_ = &f.engine.Add(labels, kLatencyBuckets);
+    engine_cpu_ = &f.engine_cpu.Add(labels);
     pvs_ = &f.pvs.Add(labels, kPvsBuckets);
     voxels_ = &f.voxels.Add(labels, kVoxelBuckets);
     skipped_ = &f.skipped.Add(labels);
@@ -212,6 +219,7 @@ class PrometheusSceneMetrics final : public SceneMetrics {
     f.frames.Remove(frames_);
     f.latency.Remove(latency_);
     f.engine.Remove(engine_);
+    f.engine_cpu.Remove(engine_cpu_);
     f.pvs.Remove(pvs_);
     f.voxels.Remove(voxels_);
     f.skipped.Remove(skipped_);
@@ -233,6 +241,10 @@ class PrometheusSceneMetrics final : public SceneMetrics {
     engine_->Observe(stats.time_us * 1e-6);
     pvs_->Observe(static_cast<double>(stats.pvs_size));
     voxels_->Observe(static_cast<double>(stats.voxels_visited));
+  }
+  void engine_cpu(double seconds) override {
+    std::shared_lock lock(mutex_);
+    if (!removed_ && seconds > 0.0) engine_cpu_->Increment(seconds);
   }
   void skipped(std::uint32_t n) override {
     std::shared_lock lock(mutex_);
@@ -280,6 +292,7 @@ class PrometheusSceneMetrics final : public SceneMetrics {
   Counter* frames_;
   Histogram* latency_;
   Histogram* engine_;
+  Counter* engine_cpu_;
   Histogram* pvs_;
   Histogram* voxels_;
   Counter* skipped_;
@@ -362,6 +375,12 @@ class NullMetrics final : public Metrics {
 };
 
 }  // namespace
+
+double thread_cpu_seconds() {
+  timespec ts{};
+  if (clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts) != 0) return 0.0;
+  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+}
 
 std::unique_ptr<Metrics> make_prometheus_metrics(const std::string& address) {
   return std::make_unique<PrometheusMetrics>(address);

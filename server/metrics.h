@@ -38,6 +38,12 @@ class SceneMetrics {
  public:
   virtual ~SceneMetrics() = default;
   virtual void frame(const FrameStats& stats, double latency_seconds) = 0;
+  /// CPU seconds a worker thread spent in a frame's engine call (what the
+  /// server's CPU per answer subtracts: unlike FrameStats::time_us, it does
+  /// not count time the thread waited for a core).
+  virtual void engine_cpu(double seconds) = 0;
+  /// Whether engine_cpu records anything (the caller then reads the clock).
+  virtual bool wants_engine_cpu() const { return true; }
   virtual void skipped(std::uint32_t n) = 0;
   virtual void moves(std::uint32_t n) = 0;
   virtual void wake_size(std::size_t n) = 0;
@@ -72,6 +78,8 @@ class Metrics {
 class NullSceneMetrics : public SceneMetrics {
  public:
   void frame(const FrameStats&, double) override {}
+  void engine_cpu(double) override {}
+  bool wants_engine_cpu() const override { return false; }
   void skipped(std::uint32_t) override {}
   void moves(std::uint32_t) override {}
   void wake_size(std::size_t) override {}
@@ -81,6 +89,9 @@ class NullSceneMetrics : public SceneMetrics {
   void verify_edge_only(std::size_t) override {}
   void verify_dropped() override {}
 };
+
+/// CPU seconds the calling thread has used (CLOCK_THREAD_CPUTIME_ID).
+double thread_cpu_seconds();
 
 /// Metrics served over HTTP at `address` ("127.0.0.1:9464"). Throws
 /// std::runtime_error naming the address when it cannot listen.

@@ -25,13 +25,16 @@ void SceneEntry::refresh_wake() {
   const std::uint64_t epoch = scene->wake_epoch();
   if (epoch == wake_epoch_seen && wake) return;
   wake_epoch_seen = epoch;
-  std::vector<ObjectId> ids = scene->wake_set();
+  // Into a reused buffer: the epoch moves with most frames of a scene with
+  // dynamic objects, the set itself far less often.
+  std::vector<ObjectId>& ids = wake_buffer;
+  scene->wake_set(&ids);
   wake_size.store(static_cast<std::uint32_t>(ids.size()), std::memory_order_relaxed);
   if (metrics) metrics->wake_size(ids.size());
   if (wake && wake->ids == ids) return;
   auto snap = std::make_shared<WakeSnapshot>();
   snap->version = wake ? wake->version + 1 : 1;
-  snap->ids = std::move(ids);
+  snap->ids = ids;
   wake = snap;
   for (const auto& sink : sinks) {
     std::lock_guard<std::mutex> sink_lock(sink->mu);

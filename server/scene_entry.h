@@ -78,6 +78,7 @@ struct SceneEntry {
   std::mutex wake_mu;
   std::uint64_t wake_epoch_seen = ~std::uint64_t{0};       // Guarded by wake_mu.
   std::shared_ptr<const WakeSnapshot> wake;                // Guarded by wake_mu.
+  std::vector<ObjectId> wake_buffer;                       // Guarded by wake_mu: refresh_wake's.
   std::vector<std::shared_ptr<WakeSink>> sinks;            // Guarded by wake_mu.
 
   /// Bookkeeping after a frame computed for any viewer: counters, metrics,

@@ -330,6 +330,8 @@ grpc::Status Service::serve_frame(SceneEntry& e, FrameViewer* viewer, const Came
   // The scene's clock is shared: a time behind it is taken as it, one too
   // far beyond the simulation's as its limit.
   const double at = e.view_time(t, config_.max_view_lead_s);
+  const bool cpu = e.metrics && e.metrics->wants_engine_cpu();
+  const double cpu0 = cpu ? thread_cpu_seconds() : 0.0;
   const grpc::Status g = guarded(e, "frame", [&] {
     auto frame = [&](ViewerId id) {
       Status s = scene.frame(id, camera, at, scratch, result, Scene::Clock::Latest);
@@ -350,6 +352,7 @@ grpc::Status Service::serve_frame(SceneEntry& e, FrameViewer* viewer, const Came
     }
     return frame(viewer->id);
   });
+  if (cpu) e.metrics->engine_cpu(thread_cpu_seconds() - cpu0);
   if (!g.ok()) return g;
   e.after_frame(*result);
   if (check) *check = verify_sample();

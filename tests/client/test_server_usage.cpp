@@ -35,6 +35,18 @@ TEST(ServerUsage, ReadsTheScenesSeriesAndTheProcessCpu) {
   EXPECT_EQ(u.engine_seconds, 0.5);
 }
 
+TEST(ServerUsage, PrefersTheEnginesCpuTime) {
+  const std::string text = std::string(kText) +
+                           "voxvis_frame_engine_cpu_seconds_total{scene=\"indoor\"} 0.125\n"
+                           "voxvis_frame_engine_cpu_seconds_total{scene=\"indoor2\"} 0.375\n";
+  ServerUsage u;
+  std::string error;
+  ASSERT_TRUE(parse_server_usage(text, "indoor", &u, &error)) << error;
+  EXPECT_EQ(u.engine_seconds, 0.125);
+  ASSERT_TRUE(parse_server_usage(text, "indoor2", &u, &error)) << error;
+  EXPECT_EQ(u.engine_seconds, 0.375);
+}
+
 TEST(ServerUsage, NamesTheMissingSeries) {
   ServerUsage u;
   std::string error;

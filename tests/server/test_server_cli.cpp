@@ -393,6 +393,11 @@ TEST(ServerCli, LoadgenTicksReportAnswersAndTheServersCpu) {
               j.at("server_cpu_s_per_answer").get<double>() - j.at("server_engine_s_per_answer").get<double>(),
               1e-12);
 
+  // What it read: the process's CPU, and the engine's CPU in the scene's frames.
+  const std::string text = http_get(server.metrics_port(), "/metrics");
+  EXPECT_NE(text.find("\nprocess_cpu_seconds_total "), std::string::npos) << text;
+  EXPECT_NE(text.find("\nvoxvis_frame_engine_cpu_seconds_total{scene=\"paper\"} "), std::string::npos) << text;
+
   // Bad arguments fail before the run, naming the flag.
   const ProcessResult many = run_program({VOXVIS_CLI, "loadgen", "--server", server.address(), "--scene", "paper",
                                           "--tick", "--viewers", "1025", "--rate", "30", "--duration", "1"},
