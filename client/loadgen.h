@@ -29,6 +29,7 @@
 #include <mutex>
 #include <numbers>
 #include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -364,6 +365,32 @@ class CameraSource {
   double radius_z_ = 0.0;
   double far_ = 1.0;
 };
+
+/// The pacing loop: message k is due at start + k / per_second, until the
+/// run's duration. `send(k, t)` sends it at `t` seconds since the start and
+/// returns false when the stream still had a write outstanding. A message
+/// due more than one period (1 / rate) ago is not sent, so a late pacing
+/// thread catches up instead of bursting; both count as skipped sends.
+template <class Send>
+void pace(const LoadgenArgs& args, Shared& shared, ProgressLine& progress, double per_second, Send&& send) {
+  const Clock::time_point start = shared.start;
+  const Clock::time_point end = start + seconds(args.duration);
+  const Clock::duration period = seconds(1.0 / args.rate);
+  for (std::uint64_t k = 0;;) {
+    const Clock::time_point due = start + seconds(static_cast<double>(k) / per_second);
+    if (due >= end) return;
+    const Clock::time_point now = Clock::now();
+    const Clock::time_point next_progress = progress.update(now);
+    if (due > now) {
+      std::this_thread::sleep_until(std::min(due, next_progress));
+      continue;
+    }
+    // Never decreasing along a stream: the clock is monotonic.
+    if (now - due > period || !send(k, std::chrono::duration<double>(now - start).count()))
+      shared.send_skipped.fetch_add(1, std::memory_order_relaxed);
+    ++k;
+  }
+}
 
 /// Runs the View driver: one stream per viewer, spread over `clients`
 /// (connections), viewer v's frame k due at start + (k + v / N) / rate.

@@ -2,8 +2,6 @@
 // every request carries all N viewers' cameras, as a game server sends its
 // whole tick. Tick k is due at start + k / rate; latency is a tick's, from
 // its request written to its response read.
-#include <thread>
-
 #include "loadgen.h"
 
 namespace voxvis::cli::loadgen {
@@ -79,32 +77,10 @@ bool drive_ticks(const LoadgenArgs& args, const CameraSource& source, const clie
   TickStream& stream = *streams.front();
   stream.start(client, args.scene, args.delta ? v1::PVS_DELTA : v1::PVS_FULL, args.viewers);
 
-  // Pacing: tick k is due at start + k / rate; a tick due more than one
-  // period ago is dropped (counted as a skipped send), so a late pacing
-  // thread catches up instead of bursting.
-  const Clock::time_point start = shared.start;
-  const Clock::time_point end = start + seconds(args.duration);
-  const Clock::duration period = seconds(1.0 / args.rate);
   ProgressLine progress(args, shared);
-  for (std::uint64_t tick = 0;;) {
-    const Clock::time_point due = start + seconds(static_cast<double>(tick) / args.rate);
-    if (due >= end) break;
-    const Clock::time_point now = Clock::now();
-    const Clock::time_point next_progress = progress.update(now);
-    if (due > now) {
-      std::this_thread::sleep_until(std::min(due, next_progress));
-      continue;
-    }
-    if (now - due > period) {
-      shared.send_skipped.fetch_add(1, std::memory_order_relaxed);
-    } else {
-      const double t = std::chrono::duration<double>(now - start).count();
-      if (!stream.send_tick(tick, t, [&](int v) { return source.at(v, tick, t); })) {
-        shared.send_skipped.fetch_add(1, std::memory_order_relaxed);
-      }
-    }
-    ++tick;
-  }
+  pace(args, shared, progress, args.rate, [&](std::uint64_t tick, double t) {
+    return stream.send_tick(tick, t, [&](int v) { return source.at(v, tick, t); });
+  });
 
   const bool ended = end_streams(streams, shared);
   progress.finish();

@@ -1,8 +1,6 @@
 // loadgen_views.cpp — `voxvis loadgen`'s View driver: one View stream per
 // viewer, the viewers spread evenly over each frame period so that the
 // server sees a steady load rather than N requests at once.
-#include <thread>
-
 #include "loadgen.h"
 
 namespace voxvis::cli::loadgen {
@@ -58,40 +56,15 @@ bool drive_views(const LoadgenArgs& args, const CameraSource& source,
     viewers.back()->start(*clients[static_cast<std::size_t>(v) % clients.size()], args.scene, encoding);
   }
 
-  // Pacing: viewer v's frame k is due at start + (k + v / N) / rate. A frame
-  // due more than one period ago is dropped (counted as a skipped send), so
-  // a late pacing thread catches up instead of bursting.
-  const Clock::time_point start = shared.start;
-  const Clock::time_point end = start + seconds(args.duration);
-  const Clock::duration period = seconds(1.0 / args.rate);
+  // Viewer v's frame f is message f * N + v: due at start + (f + v / N) /
+  // rate, the viewers spread evenly over each period.
   ProgressLine progress(args, shared);
-  std::uint64_t frame = 0;
-  int cursor = 0;
-  const double n_viewers = static_cast<double>(args.viewers);
-  for (;;) {
-    const Clock::time_point due = start + seconds((static_cast<double>(frame) + cursor / n_viewers) / args.rate);
-    if (due >= end) break;
-    const Clock::time_point now = Clock::now();
-    const Clock::time_point next_progress = progress.update(now);
-    if (due > now) {
-      std::this_thread::sleep_until(std::min(due, next_progress));
-      continue;
-    }
-    Viewer& viewer = *viewers[static_cast<std::size_t>(cursor)];
-    if (now - due > period) {
-      shared.send_skipped.fetch_add(1, std::memory_order_relaxed);
-    } else {
-      // Never decreasing along a stream: the clock is monotonic.
-      const double t = std::chrono::duration<double>(now - start).count();
-      if (!viewer.send_frame(frame, t, source.at(cursor, frame, t))) {
-        shared.send_skipped.fetch_add(1, std::memory_order_relaxed);
-      }
-    }
-    if (++cursor == args.viewers) {
-      cursor = 0;
-      ++frame;
-    }
-  }
+  const auto n = static_cast<std::uint64_t>(args.viewers);
+  pace(args, shared, progress, args.rate * static_cast<double>(n), [&](std::uint64_t k, double t) {
+    const auto v = static_cast<int>(k % n);
+    const std::uint64_t frame = k / n;
+    return viewers[static_cast<std::size_t>(v)]->send_frame(frame, t, source.at(v, frame, t));
+  });
 
   const bool ended = end_streams(viewers, shared);
   progress.finish();
