@@ -54,9 +54,11 @@ grpc::Status serialize_message(const google::protobuf::MessageLite& m, grpc::Byt
 /// vectors, an answer's id sets and stats), so a stream reusing one plain
 /// message still allocated several times an answer. fresh() drops the
 /// previous message wholesale and returns a new one on the arena's first
-/// block, which grows (on the next fresh()) to twice the most a message used:
-/// a stream's steady traffic allocates nothing. Call fresh() on the thread
-/// that then fills the message: the arena's first block serves that thread.
+/// block, which grows (on the next fresh()) to twice the most a message used,
+/// up to 4 MiB: a stream's steady traffic allocates nothing (a message beyond
+/// that takes further blocks from the heap, freed by the next fresh()). Call
+/// fresh() on the thread that then fills the message: the arena's first
+/// block serves that thread.
 template <class M>
 class ReusedMessage {
  public:
@@ -68,7 +70,7 @@ class ReusedMessage {
   const M& get() const { return *message_; }
   M& fresh() {
     const std::uint64_t used = arena_->SpaceAllocated();
-    if (used > block_size_) {
+    if (used > block_size_ && block_size_ < kMostBlock) {
       make(static_cast<std::size_t>(std::min<std::uint64_t>(2 * used, kMostBlock)));
     } else {
       arena_->Reset();
@@ -83,7 +85,7 @@ class ReusedMessage {
   void make(std::size_t bytes) {
     message_ = nullptr;
     arena_.reset();
-    block_ = std::make_unique<char[]>(bytes);
+    block_ = std::make_unique_for_overwrite<char[]>(bytes);
     block_size_ = bytes;
     arena_ = std::make_unique<google::protobuf::Arena>(block_.get(), bytes);
     message_ = google::protobuf::Arena::CreateMessage<M>(arena_.get());
