@@ -71,11 +71,20 @@
 //     also applies the walkthrough's moves before each of its frames.
 //     answers_per_s (all viewers, wall time), median_us, p99_us.
 //
+//   ticks/walkthrough[/moves]/n:V/ob:128, ticks/indoor/n:24/ob:160
+//     The server's Tick without the server (BM_Ticks): each tick, the moves
+//     (/moves), then V viewers' frames at one scene time on two worker
+//     threads, the next tick when all are done. answers_per_s,
+//     tick_median_ms, tick_p99_ms, busy (engine time over both workers' wall
+//     time), and per tick the TBVs renewed, created and revealed.
+//
 // Filter with --benchmark_filter=walkthrough, hidden_dynamic, indoor, voxel_world,
-// city or viewers (a regular expression: 'city/ob:256', 'ob:(128|512)').
+// city, viewers or ticks (a regular expression: 'city/ob:256', 'ob:(128|512)').
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
+#include <atomic>
+#include <barrier>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -634,6 +643,98 @@ void BM_Viewers(benchmark::State& state, Path which, glm::ivec3 grid, int viewer
   state.counters["viewers"] = viewers;
 }
 
+/// Ticks as the server runs them: every tick, the moves (with `moves`),
+/// then the frames of `viewers` viewers of one scene at the same scene time,
+/// shared by two worker threads (the 2-core machine's pool), and the next
+/// tick only when all are answered. Each viewer walks the recording from its
+/// own start. One iteration: 100 ticks. Reports answers per second of wall
+/// time, the median tick, the workers' busy share (engine time over 2 x
+/// wall), and per tick the TBVs renewed, created and revealed.
+void BM_Ticks(benchmark::State& state, Path which, glm::ivec3 grid, int viewers, bool moves, int ob) {
+  constexpr int kTicks = 100;
+  constexpr int kWorkers = 2;
+  const Recording& rec = recording(which);
+  SceneDesc desc = rec.scene;
+  if (grid.x > 0) desc.grid = grid;
+  std::unique_ptr<Scene> scene;
+  SceneOptions options;
+  options.occlusion_buffer = ob;
+  if (const Status st = Scene::create(desc, options, &scene); !st.ok) {
+    state.SkipWithError(("Scene::create: " + st.str()).c_str());
+    return;
+  }
+  const std::size_t n = rec.frames.size();
+  std::vector<ViewerId> ids;
+  for (int v = 0; v < viewers; ++v) ids.push_back(scene->add_viewer());
+  std::vector<Scratch> scratch(kWorkers);
+  std::vector<FrameResult> results(static_cast<std::size_t>(viewers));
+  std::atomic<int> next{0};
+  std::atomic<bool> failed{false}, stop{false};
+  std::size_t step = 0;
+  std::barrier sync(kWorkers + 1);
+  auto worker = [&](int k) {
+    for (;;) {
+      sync.arrive_and_wait();  // A tick starts (or the run ends).
+      if (stop.load()) return;
+      for (int v; (v = next.fetch_add(1)) < viewers;) {
+        const std::size_t f = ping_pong(step + static_cast<std::size_t>(v) * n / static_cast<std::size_t>(viewers), n);
+        if (!scene->frame(ids[static_cast<std::size_t>(v)], rec.frames[f].camera, static_cast<double>(step) * rec.dt,
+                          scratch[static_cast<std::size_t>(k)], &results[static_cast<std::size_t>(v)])
+                 .ok)
+          failed = true;
+      }
+      sync.arrive_and_wait();  // The tick's frames are done.
+    }
+  };
+  std::vector<std::thread> threads;
+  for (int k = 0; k < kWorkers; ++k) threads.emplace_back(worker, k);
+  std::vector<double> tick_ms, frame_us;
+  double wall = 0.0, engine_us = 0.0;
+  std::uint64_t renewed = 0, created = 0, revealed = 0;
+  auto tick = [&](bool timed) {
+    const double t = static_cast<double>(step) * rec.dt;
+    const auto t0 = std::chrono::steady_clock::now();
+    if (moves && !rec.frames[ping_pong(step, n)].moves.empty() &&
+        !scene->apply_moves(t, rec.frames[ping_pong(step, n)].moves, nullptr).ok)
+      failed = true;
+    next = 0;
+    sync.arrive_and_wait();
+    sync.arrive_and_wait();
+    const double dt = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    ++step;
+    if (!timed) return;
+    wall += dt;
+    tick_ms.push_back(dt * 1e3);
+    for (const FrameResult& r : results) {
+      frame_us.push_back(r.stats.time_us);
+      engine_us += r.stats.time_us;
+      renewed += r.stats.tbvs_expired;
+      created += r.stats.tbvs_created;
+      revealed += r.stats.tbvs_revealed;
+    }
+  };
+  for (int i = 0; i < kTicks; ++i) tick(false);  // Warm-up: the first frames treat everything as visible.
+  for (auto _ : state)
+    for (int i = 0; i < kTicks && !failed; ++i) tick(true);
+  stop = true;
+  sync.arrive_and_wait();
+  for (std::thread& th : threads) th.join();
+  if (failed) {
+    state.SkipWithError("a frame or move failed");
+    return;
+  }
+  const double ticks = static_cast<double>(tick_ms.size());
+  state.counters["answers_per_s"] = wall > 0.0 ? static_cast<double>(frame_us.size()) / wall : 0.0;
+  state.counters["tick_median_ms"] = percentile(tick_ms, 0.5);
+  state.counters["tick_p99_ms"] = percentile(tick_ms, 0.99);
+  state.counters["frame_median_us"] = percentile(frame_us, 0.5);
+  state.counters["busy"] = wall > 0.0 ? engine_us * 1e-6 / (kWorkers * wall) : 0.0;
+  state.counters["renewed_per_tick"] = static_cast<double>(renewed) / ticks;
+  state.counters["created_per_tick"] = static_cast<double>(created) / ticks;
+  state.counters["revealed_per_tick"] = static_cast<double>(revealed) / ticks;
+  state.counters["viewers"] = viewers;
+}
+
 void register_all() {
   // The occlusion buffer's widths (SceneOptions::occlusion_buffer), 0 = off.
   const int widths[] = {0, 64, 128, 256, 512};
@@ -683,6 +784,21 @@ void register_all() {
           ->UseRealTime()
           ->Unit(benchmark::kMillisecond);
     }
+  // Ticks: the viewers of one scene answered together at one scene time.
+  for (int v : {1, 2, 4})
+    for (bool moves : {false, true}) {
+      const std::string n = std::string(moves ? "/moves" : "") + "/n:" + std::to_string(v) + "/ob:128";
+      benchmark::RegisterBenchmark(("ticks/walkthrough" + n).c_str(), BM_Ticks, Path::Walkthrough,
+                                   glm::ivec3(100, 60, 100), v, moves, 128)
+          ->Iterations(3)
+          ->UseRealTime()
+          ->Unit(benchmark::kMillisecond);
+    }
+  // The indoor target's shape: 24 viewers a tick, at the server's default width.
+  benchmark::RegisterBenchmark("ticks/indoor/n:24/ob:160", BM_Ticks, Path::Indoor, glm::ivec3(0), 24, false, 160)
+      ->Iterations(3)
+      ->UseRealTime()
+      ->Unit(benchmark::kMillisecond);
   for (int ob : {0, 256})
     for (int n : {1000, 10000, 100000}) {
       const std::string name = "hidden_dynamic/n:" + std::to_string(n) + suffix(ob);
