@@ -102,27 +102,28 @@ class ViewReactor final
 
   void advance_locked() {
     if (finished_) return;
-    if (!writing_ && ready_) write_locked();
-    if (!stopping_ && !computing_ && pending_ && !ready_) {
+    if (!writing_ && ready_full_) write_locked();
+    if (!stopping_ && !computing_ && pending_ && !ready_full_) {
       computing_ = true;
       ++jobs_;
-      Pending p = *pending_;
+      job_ = *pending_;
       pending_.reset();
-      const std::uint32_t skipped = skipped_;
+      job_skipped_ = skipped_;
       skipped_ = 0;
       // Frames of one scene run in parallel (the Scene synchronizes itself);
-      // this stream's frames one at a time.
-      svc_->pool().submit(client_, [this, entry = entry_, p, skipped](Scratch& scratch) {
-        compute(*entry, p, skipped, scratch);
-      });
+      // this stream's frames one at a time. [this] fits the job's own
+      // storage: no allocation a frame. The stream outlives its jobs
+      // (jobs_), and entry_ is fixed by now.
+      svc_->pool().submit(client_, [this](Scratch& scratch) { compute(*entry_, scratch); });
     }
-    const bool idle = !writing_ && !computing_ && !ready_;
+    const bool idle = !writing_ && !computing_ && !ready_full_;
     if (idle && (stopping_ || (eof_ && !pending_))) finish_locked();
   }
 
-  // Pool job.
-  void compute(SceneEntry& e, const Pending& p, std::uint32_t skipped, Scratch& scratch) {
-    std::optional<Ready> ready;
+  // Pool job: the frame of job_, into computed_ (both this job's alone until
+  // it hands computed_ over under mu_, trading places with the empty ready_,
+  // so that the answers' buffers go round and a frame allocates nothing).
+  void compute(SceneEntry& e, Scratch& scratch) {
     std::optional<FrameResult> check;  // Verify mode: a copy of the frame served.
     grpc::Status error;
     bool stopped;
@@ -130,34 +131,34 @@ class ViewReactor final
       std::lock_guard<std::mutex> lock(mu_);
       stopped = stopping_;
     }
+    bool served = false;
     if (stopped) {
       // Cancelled, shut down or deleted while queued: nobody waits for it.
       svc_->count_dropped();
     } else {
-      ready.emplace();
-      ready->frame = p.frame;
-      ready->received = p.received;
-      ready->skipped = skipped;
+      computed_.frame = job_.frame;
+      computed_.received = job_.received;
+      computed_.skipped = job_skipped_;
       bool sampled = false;
-      error = svc_->serve_frame(e, &viewer_, p.camera, p.t, scratch, &ready->result, &sampled);
-      if (!error.ok()) {
-        ready.reset();
-      } else if (sampled) {
-        check.emplace(ready->result);
-      }
+      error = svc_->serve_frame(e, &viewer_, job_.camera, job_.t, scratch, &computed_.result, &sampled);
+      served = error.ok();
+      if (served && sampled) check.emplace(computed_.result);
     }
     // Once mu_ is released another thread may end and delete this stream
     // (unless `del` says this job is the last): what the check needs after
-    // it is copied first. The service, the entry and `p` outlive the stream.
+    // it is copied first, the scene held by `keep`.
     Service* const svc = svc_;
-    const std::uint64_t frame = p.frame;
+    const std::shared_ptr<SceneEntry> keep = check ? entry_ : nullptr;
+    const std::uint64_t frame = job_.frame;
+    const Camera camera = job_.camera;
     const std::string viewer = check ? client_ + " viewer " + std::to_string(viewer_.id) : std::string();
     bool del;
     {
       std::lock_guard<std::mutex> lock(mu_);
       computing_ = false;
-      if (ready) {
-        ready_ = std::move(ready);
+      if (served) {
+        std::swap(ready_, computed_);
+        ready_full_ = true;
       } else if (!error.ok()) {
         stop_locked(error);
       }
@@ -165,12 +166,12 @@ class ViewReactor final
       del = end_job_locked();
     }
     // The answer is handed over; the check runs on the verifier's thread.
-    if (check) svc->verify_served(e, viewer, frame, p.camera, *check);
+    if (check) svc->verify_served(*keep, viewer, frame, camera, *check);
     if (del) release();
   }
 
   void write_locked() {
-    Ready& r = *ready_;
+    Ready& r = ready_;
     auto& w = write_.fresh();
     w.set_frame(r.frame);
     w.set_encoding(encoding_);
@@ -179,7 +180,7 @@ class ViewReactor final
     w.set_server_us(latency * 1e6);
     answer_frame(*entry_, r.result, encoding_, &last_sent_, latency, &w);
     if (entry_->metrics && r.skipped) entry_->metrics->skipped(r.skipped);
-    ready_.reset();
+    ready_full_ = false;
     start_write_locked();
   }
 
@@ -192,7 +193,11 @@ class ViewReactor final
 
   std::optional<Pending> pending_;       // Guarded by mu_.
   std::uint32_t skipped_ = 0;            // Guarded by mu_.
-  std::optional<Ready> ready_;           // Guarded by mu_.
+  Pending job_;                          // The frame computing: set under mu_, then its job's alone.
+  std::uint32_t job_skipped_ = 0;        // The same.
+  Ready computed_;                       // The computing job's answer (see compute).
+  Ready ready_;                          // Guarded by mu_: the answer waiting, when ready_full_.
+  bool ready_full_ = false;              // Guarded by mu_.
   std::vector<ObjectId> last_sent_;      // Guarded by mu_: PVS of the last answer written.
   bool computing_ = false, eof_ = false;  // Guarded by mu_.
   FrameViewer viewer_;  // Touched by this stream's jobs only, one at a time (handed over through mu_).
