@@ -99,6 +99,8 @@ Status validate_desc(const SceneDesc& d, const SceneOptions& opt) {
     if (!finite3(o.center)) return Status::Error(obj_field(i, "center"), "must be finite");
     if (max_abs(o.center) > kMaxCoordinate)
       return Status::Error(obj_field(i, "center"), "magnitude exceeds " + number_text(kMaxCoordinate));
+    if (o.shape == Shape::Mesh)  // The scene grid takes spheres and boxes; meshes come next.
+      return Status::Error(obj_field(i, "shape"), "the engine does not take meshes yet");
     if (o.shape == Shape::Sphere) {
       if (!std::isfinite(o.radius) || !(o.radius > 0.0))
         return Status::Error(obj_field(i, "radius"), "must be > 0, got " + number_text(o.radius));

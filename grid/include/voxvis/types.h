@@ -8,10 +8,13 @@
 // runs on unit cubes.
 #pragma once
 
+#include <array>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
+#include <glm/gtc/quaternion.hpp>
 #include <glm/vec3.hpp>
 
 namespace voxvis {
@@ -43,18 +46,36 @@ inline constexpr double kMinTbvPeriod = 1e-3;
 /// SceneOptions::max_resolution's default.
 inline constexpr int kMaxResolution = 8192;
 
-enum class Shape : std::uint8_t { Sphere, Box };
+enum class Shape : std::uint8_t { Sphere, Box, Mesh };
+
+/// A rotation, as a unit quaternion (w, x, y, z).
+using Quat = glm::dquat;
+
+/// Triangles in their own frame ("model space"): each triangle is three
+/// indices into `vertices`. Immutable once made and shared between the
+/// objects that place it (voxvis/mesh.h: validate_mesh states the rules).
+struct Mesh {
+  std::vector<Vec3> vertices;
+  std::vector<std::array<std::uint32_t, 3>> triangles;
+};
 
 /// One object of a scene. A box is axis-aligned; it moves rigidly (its centre
-/// moves, its half extents stay).
+/// moves, its half extents stay). A mesh is its triangles placed by a rigid
+/// transform with uniform scale, world = center + scale * rotate(rotation,
+/// model): it moves rigidly, its centre and rotation (voxvis/mesh.h).
 struct ObjectDesc {
   ObjectId id = 0;
   Shape shape = Shape::Sphere;
-  Vec3 center{0.0};       ///< World units. For a box, the centre of [min,max].
-  double radius = 0.0;    ///< Sphere radius, world units, > 0. Unused for boxes.
-  Vec3 half_extent{0.0};  ///< Box half size per axis, world units, >= 0. Unused for spheres.
+  Vec3 center{0.0};       ///< World units. For a box, the centre of [min,max]; for a mesh, where its model origin goes.
+  double radius = 0.0;    ///< Sphere radius, world units, > 0. Unused for boxes and meshes.
+  Vec3 half_extent{0.0};  ///< Box half size per axis, world units, >= 0. Unused for spheres and meshes.
   bool dynamic = false;
-  double max_speed = 0.0;  ///< World units per second, >= 0; dynamic objects only.
+  /// World units per second, >= 0; dynamic objects only. For a mesh, a bound
+  /// on the speed of every point of it (rotation included).
+  double max_speed = 0.0;
+  std::shared_ptr<const Mesh> mesh;  ///< Meshes only.
+  Quat rotation{1.0, 0.0, 0.0, 0.0};  ///< Meshes only: a unit quaternion.
+  double scale = 1.0;                 ///< Meshes only: > 0.
 };
 
 /// Narrowest accepted vertical field of view, degrees (about 17 nanoradians,
@@ -82,10 +103,13 @@ struct Camera {
   double far = 1000.0;      ///< World units, > near.
 };
 
-/// A new centre for a dynamic object.
+/// A new centre for a dynamic object, and for a mesh, optionally a new
+/// rotation (else it keeps its last).
 struct Move {
   ObjectId id = 0;
   Vec3 center{0.0};  ///< World units.
+  bool has_rotation = false;
+  Quat rotation{1.0, 0.0, 0.0, 0.0};  ///< With has_rotation: a unit quaternion.
 };
 
 /// The result of an operation on untrusted input: ok, or what is wrong and
