@@ -16,6 +16,7 @@
 #include "numeric.h"
 #include "opaque_boxes.h"
 #include "scene_impl.h"
+#include "tri_box.h"
 
 namespace voxvis {
 
@@ -99,9 +100,9 @@ Status validate_desc(const SceneDesc& d, const SceneOptions& opt) {
     if (!finite3(o.center)) return Status::Error(obj_field(i, "center"), "must be finite");
     if (max_abs(o.center) > kMaxCoordinate)
       return Status::Error(obj_field(i, "center"), "magnitude exceeds " + number_text(kMaxCoordinate));
-    if (o.shape == Shape::Mesh)  // The scene grid takes spheres and boxes; meshes come next.
-      return Status::Error(obj_field(i, "shape"), "the engine does not take meshes yet");
-    if (o.shape == Shape::Sphere) {
+    if (o.shape == Shape::Mesh) {
+      if (Status s = validate_mesh_object(o, "objects[" + std::to_string(i) + "]"); !s) return s;
+    } else if (o.shape == Shape::Sphere) {
       if (!std::isfinite(o.radius) || !(o.radius > 0.0))
         return Status::Error(obj_field(i, "radius"), "must be > 0, got " + number_text(o.radius));
       if (o.radius > kMaxCoordinate)
@@ -209,6 +210,18 @@ Status prepare(const SceneDesc& desc, const SceneOptions& options, Scene::Impl& 
     o.center = d.center;
     o.radius = d.shape == Shape::Sphere ? d.radius : 0.0;
     o.half = d.shape == Shape::Sphere ? Vec3(d.radius) : d.half_extent;
+    if (d.shape == Shape::Mesh) {
+      o.mesh = d.mesh;
+      o.mesh_origin = d.center;
+      o.mesh_rotation = unit_rotation(d.rotation);
+      o.mesh_scale = d.scale;
+      o.mesh_centroid = mesh_centroid(*d.mesh);
+      double model = 0.0;
+      for (const Vec3& v : d.mesh->vertices) model = std::fmax(model, max_abs(v));
+      o.mesh_extent = d.scale * std::sqrt(3.0) * model;
+      if (o.dynamic) o.radius = d.scale * mesh_reach(*d.mesh, o.mesh_centroid);
+      s.place_mesh(o);
+    }
     o.last_move_t = std::numeric_limits<double>::quiet_NaN();
     if (o.dynamic) {
       // Voxels its box can touch wherever it goes: one more than its size
@@ -216,7 +229,8 @@ Status prepare(const SceneDesc& desc, const SceneOptions& options, Scene::Impl& 
       double n = 1.0;
       for (int a = 0; a < 3; ++a)
         n *= std::fmin(std::ceil(2.0 * o.half[a] * s.inv_vs[a]) + 1.0, static_cast<double>(s.res[a]));
-      o.no_opacity = !(n <= static_cast<double>(detail::kDynOpacityMaxVoxels)) || options.occlusion_buffer > 0;
+      o.no_opacity = !(n <= static_cast<double>(detail::kDynOpacityMaxVoxels)) || options.occlusion_buffer > 0 ||
+                     o.shape == Shape::Mesh;
     }
     s.slot_of.emplace(o.id, static_cast<std::uint32_t>(s.objs.size()));
     s.objs.push_back(o);
@@ -225,11 +239,65 @@ Status prepare(const SceneDesc& desc, const SceneOptions& options, Scene::Impl& 
   return Status::Ok();
 }
 
+/// The voxels static mesh `o` touches, from its triangles: each triangle
+/// against the voxels of its own box, by the separating-axis test with the
+/// voxel grown by the rounding allowance of placing and mapping its
+/// vertices (a rounding only adds a voxel the mesh touches within it).
+/// emit(0, voxel) once a voxel, in index order. False when cancelled.
+template <class Emit>
+bool mesh_voxels(const Scene::Impl& s, const Obj& o, BuildMeter& meter, Emit&& emit) {
+  ObjectDesc d;
+  d.shape = Shape::Mesh;
+  d.mesh = o.mesh;
+  d.center = o.mesh_origin;
+  d.rotation = o.mesh_rotation;
+  d.scale = o.mesh_scale;
+  const Mesh& mesh = *o.mesh;
+  std::vector<Vec3> g(mesh.vertices.size());
+  for (std::size_t i = 0; i < g.size(); ++i) g[i] = s.to_grid(place(d, mesh.vertices[i]));
+  // Placement (64 ulps of its magnitudes, as place_mesh) and mapping (slop).
+  const double sl = 64.0 * kUlp * (max_abs(o.mesh_origin) + o.mesh_extent) + s.slop(max_abs(o.center) + max_abs(o.half));
+  const Vec3 grow = sl * s.inv_vs + 1e-9;
+  std::vector<std::int64_t> voxels;
+  for (const auto& t : mesh.triangles) {
+    const Vec3 &a = g[t[0]], &b = g[t[1]], &c = g[t[2]];
+    const Vec3 lo = glm::min(a, glm::min(b, c)) - grow, hi = glm::max(a, glm::max(b, c)) + grow;
+    glm::ivec3 v0, v1;
+    bool empty = false;
+    for (int k = 0; k < 3; ++k) {
+      // Voxel i spans [i, i+1]: it meets [lo, hi] iff ceil(lo) - 1 <= i <= floor(hi).
+      v0[k] = clamp_floor(std::ceil(lo[k]) - 1.0, 0, s.res[k] - 1);
+      v1[k] = clamp_floor(hi[k], -1, s.res[k] - 1);
+      empty = empty || hi[k] < 0.0 || lo[k] > s.res[k];
+    }
+    if (empty) continue;
+    std::uint64_t n = 0;
+    for (int z = v0.z; z <= v1.z; ++z)
+      for (int y = v0.y; y <= v1.y; ++y)
+        for (int x = v0.x; x <= v1.x; ++x) {
+          const Vec3 centre(x + 0.5, y + 0.5, z + 0.5);
+          ++n;
+          if (detail::triangle_meets_box(a, b, c, centre, 0.5 + grow)) voxels.push_back(s.index(x, y, z));
+        }
+    if (!meter.tick(n + 1)) return false;
+  }
+  std::sort(voxels.begin(), voxels.end());
+  voxels.erase(std::unique(voxels.begin(), voxels.end()), voxels.end());
+  for (const std::int64_t i : voxels) {
+    const int x = static_cast<int>(i % s.res.x);
+    const int y = static_cast<int>((i / s.res.x) % s.res.y);
+    const int z = static_cast<int>(i / (std::int64_t{s.res.x} * s.res.y));
+    emit(0, glm::ivec3(x, y, z));
+  }
+  return true;
+}
+
 /// Splits static object `slot` into the cells it is stored in (cells.h):
 /// emit(level, cell). False when cancelled.
 template <class Emit>
 bool static_cells(const Scene::Impl& s, std::uint32_t slot, BuildMeter& meter, Emit&& emit) {
   const Obj& o = s.objs[slot];
+  if (o.shape == Shape::Mesh) return mesh_voxels(s, o, meter, emit);
   const double sl = s.slop(max_abs(o.center) + o.radius + max_abs(o.half));
   const VoxBox vb = s.touch_range(o.box_lo(), o.box_hi(), sl);
   // A box touches exactly the voxels of its touch range; a ball's touched
@@ -503,7 +571,9 @@ std::vector<std::uint8_t> redundant_boxes(const Scene::Impl& s) {
     if (s.vflags[i] & Scene::Impl::kCoarseIds) s.coarse_static(vb.lo.x, vb.lo.y, vb.lo.z, slots, &n, std::size(slots));
     for (std::size_t k = 0; k < n && !inside[b]; ++k) {
       const Obj& o = s.objs[slots[k]];
-      if (o.shape == Shape::Sphere) {
+      if (o.shape == Shape::Mesh) {
+        continue;  // Not drawn into the buffer: the box must be.
+      } else if (o.shape == Shape::Sphere) {
         // The farthest corner from the centre within the radius.
         const Vec3 far = glm::max(glm::abs(lo - o.center), glm::abs(hi - o.center));
         inside[b] = glm::dot(far, far) <= o.radius * o.radius;

@@ -90,11 +90,14 @@ void Collector::add(std::uint32_t slot) {
       return;
     }
     // Every object the frame finds is an occluder, at the position the
-    // scene has for it (the one it is visible at).
-    const ScopedTicks timed(w_.render_ticks);
-    const bool wrote =
-        o.shape == Shape::Sphere ? ob.render_sphere(o.center, o.radius) : ob.render_box(o.box_lo(), o.box_hi());
-    if (wrote) ++st_.ob_occluders;
+    // scene has for it (the one it is visible at); meshes not yet (their
+    // box is not solid).
+    if (o.shape != Shape::Mesh) {
+      const ScopedTicks timed(w_.render_ticks);
+      const bool wrote =
+          o.shape == Shape::Sphere ? ob.render_sphere(o.center, o.radius) : ob.render_box(o.box_lo(), o.box_hi());
+      if (wrote) ++st_.ob_occluders;
+    }
   }
   w_.obj_mark[slot] = w_.frame;
   w_.pvs.push_back(slot);

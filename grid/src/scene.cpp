@@ -162,7 +162,33 @@ constexpr int kMaxUnion = 16;  ///< Inner boxes the exact union test takes per v
 
 }  // namespace
 
+void Scene::Impl::place_mesh(Obj& o) const {
+  // Placed points are rounded by a few ulps of the placement's magnitudes;
+  // 64 ulps of them and the box's own rounding are allowed for.
+  const double m = 64.0 * kUlp * (max_abs(o.mesh_origin) + o.mesh_extent) + 1e-300;
+  if (o.dynamic) {
+    o.center = o.mesh_origin + o.mesh_scale * (o.mesh_rotation * o.mesh_centroid);
+    o.half = Vec3(o.radius + m);
+    return;
+  }
+  ObjectDesc d;
+  d.shape = Shape::Mesh;
+  d.mesh = o.mesh;
+  d.center = o.mesh_origin;
+  d.rotation = o.mesh_rotation;
+  d.scale = o.mesh_scale;
+  Vec3 lo, hi;
+  mesh_bounds(d, &lo, &hi);
+  o.center = (lo + hi) * 0.5;
+  o.half = glm::max(hi - o.center, o.center - lo) + m;
+}
+
 void Scene::Impl::inner_box(const Obj& o, const Vec3& c, Vec3* lo, Vec3* hi) const {
+  if (o.shape == Shape::Mesh) {  // No volume is known to be inside a mesh: empty.
+    *lo = Vec3(std::numeric_limits<double>::infinity());
+    *hi = Vec3(-std::numeric_limits<double>::infinity());
+    return;
+  }
   const double s = slop(max_abs(c) + o.radius + max_abs(o.half));
   const Vec3 sg = s * inv_vs;
   if (o.shape == Shape::Sphere) {
@@ -825,6 +851,20 @@ Status Scene::apply_moves(double t, std::span<const Move> moves, MoveReport* rep
     if (!finite3(m.center)) return Status::Error(f + ".center", "must be finite");
     if (max_abs(m.center) > kMaxCoordinate)
       return Status::Error(f + ".center", "magnitude exceeds " + number_text(kMaxCoordinate));
+    const Obj& o = s.objs[it->second];
+    if (m.has_rotation) {
+      if (o.shape != Shape::Mesh)
+        return Status::Error(f + ".rotation", "object " + std::to_string(m.id) + " is a " +
+                                                  (o.shape == Shape::Sphere ? "sphere" : "box") +
+                                                  "; only meshes rotate");
+      if (Status st = validate_rotation(m.rotation, f + ".rotation"); !st) return st;
+    }
+    if (o.shape == Shape::Mesh) {
+      const Quat q = m.has_rotation ? unit_rotation(m.rotation) : o.mesh_rotation;
+      const Vec3 c = m.center + o.mesh_scale * (q * o.mesh_centroid);
+      if (!(max_abs(c) + o.radius <= kMaxCoordinate))
+        return Status::Error(f + ".center", "places the mesh beyond " + number_text(kMaxCoordinate));
+    }
   }
   s.time = t;
   s.time_set = true;
@@ -837,13 +877,34 @@ Status Scene::apply_moves(double t, std::span<const Move> moves, MoveReport* rep
   for (const Move& m : moves) {
     const std::uint32_t slot = s.slot_of.find(m.id)->second;
     Obj& o = s.objs[slot];
-    const double dist = glm::length(m.center - o.center);
+    // The object's new centre and half: a mesh's are its centroid ball's
+    // (place_mesh), whose centre lies in the mesh's hull and so moves no
+    // faster than the mesh's fastest point.
+    Vec3 center = m.center, half = o.half;
+    Obj placed;
+    if (o.shape == Shape::Mesh) {
+      placed = o;
+      placed.mesh_origin = m.center;
+      if (m.has_rotation) placed.mesh_rotation = unit_rotation(m.rotation);
+      s.place_mesh(placed);
+      center = placed.center;
+      half = placed.half;
+    }
+    auto set_center = [&] {
+      o.center = center;
+      o.half = half;
+      if (o.shape == Shape::Mesh) {
+        o.mesh_origin = placed.mesh_origin;
+        o.mesh_rotation = placed.mesh_rotation;
+      }
+    };
+    const double dist = glm::length(center - o.center);
     bool too_fast = false;
     // Before the first frame nothing has been observed, so nothing is checked.
     const double since = std::isfinite(o.last_move_t) ? o.last_move_t : s.first_frame_time;
     if (std::isfinite(since)) {
       const double allowed = o.max_speed * (t - since);
-      too_fast = dist > allowed * (1.0 + 1e-9) + s.slop(max_abs(m.center));
+      too_fast = dist > allowed * (1.0 + 1e-9) + s.slop(max_abs(center));
     }
     o.last_move_t = t;
     if (too_fast) {
@@ -851,22 +912,22 @@ Status Scene::apply_moves(double t, std::span<const Move> moves, MoveReport* rep
       if (report) report->too_fast.push_back(m.id);
     }
     if (o.under_tbv) {
-      const double sl = s.slop(max_abs(m.center));
-      const bool inside = glm::all(glm::greaterThanEqual(m.center - o.half, o.tbv_lo + sl)) &&
-                          glm::all(glm::lessThanEqual(m.center + o.half, o.tbv_hi - sl));
-      o.center = m.center;
+      const double sl = s.slop(max_abs(center));
+      const bool inside = glm::all(glm::greaterThanEqual(center - half, o.tbv_lo + sl)) &&
+                          glm::all(glm::lessThanEqual(center + half, o.tbv_hi - sl));
+      set_center();
       // A move the TBV does not bound voids it: the object is revealed.
       if (too_fast || !inside) {
         s.reveal(slot);
         ++s.pending.tbvs_revealed;
         s.pending_wake.push_back(slot);
       }
-    } else if (m.center != o.disc_center) {
+    } else if (center != o.disc_center || half != o.half) {
       s.undiscretize(slot);
-      o.center = m.center;
+      set_center();
       s.discretize(slot);
     } else {
-      o.center = m.center;
+      set_center();
     }
     if (report) ++report->applied;
   }
@@ -886,7 +947,8 @@ std::vector<Move> Scene::dynamic_centers(double* time, std::uint64_t* epoch) con
   std::vector<Move> out;
   out.reserve(impl_->dynamic_count);
   for (const Obj& o : impl_->objs)
-    if (o.dynamic) out.push_back(Move{o.id, o.center});
+    if (o.dynamic)
+      out.push_back(o.shape == Shape::Mesh ? Move{o.id, o.mesh_origin, true, o.mesh_rotation} : Move{o.id, o.center});
   std::sort(out.begin(), out.end(), [](const Move& a, const Move& b) { return a.id < b.id; });
   return out;
 }

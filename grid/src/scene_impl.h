@@ -35,6 +35,7 @@
 #include "cells.h"
 #include "occlusion_buffer.h"
 #include "voxbox.h"
+#include "voxvis/mesh.h"
 #include "voxvis/scene.h"
 
 namespace voxvis {
@@ -93,6 +94,24 @@ struct Obj {
   Vec3 tbv_center{0.0};           ///< Centre the TBV was grown around.
   std::int32_t tbv_outside_pos = -1;
   VoxBox tbv_voxels;              ///< Voxels the TBV touches, clipped to the grid.
+
+  // A mesh (shape Mesh): its triangles and placement. The engine's centre
+  // and half above are a box holding it: for a static mesh its placed
+  // vertices' box, for a dynamic one the cube around the ball of its
+  // centroid (radius: scale x reach, whatever the rotation), so that every
+  // test made on an object's box bounds the mesh. Which voxels a static
+  // mesh touches comes from its triangles (build.cpp, mesh_voxels). A mesh
+  // adds no opacity and is not drawn into the occlusion buffer: other
+  // objects hide it, it hides nothing (docs/design.md, "Meshes").
+  std::shared_ptr<const Mesh> mesh;
+  Vec3 mesh_origin{0.0};          ///< Where the model origin is (ObjectDesc::center, or the last move's).
+  Quat mesh_rotation{1.0, 0.0, 0.0, 0.0};  ///< Unit.
+  double mesh_scale = 1.0;
+  Vec3 mesh_centroid{0.0};        ///< Model units (mesh_centroid()).
+  /// scale x sqrt(3) x the largest model coordinate: with the origin's
+  /// magnitude, the size of the placement's arithmetic, for the rounding
+  /// allowance of placed points.
+  double mesh_extent = 0.0;
 
   Vec3 box_lo() const { return center - half; }
   Vec3 box_hi() const { return center + half; }
@@ -416,6 +435,9 @@ struct Scene::Impl {
   /// `range` was seen within the memory.
   bool recent_cell(const std::vector<double>& at, int l, const detail::VoxBox& range) const;
   void reveal(std::uint32_t slot);
+  /// Sets a mesh's centre, half (and for a dynamic one radius) from its
+  /// placement: the box holding it (see Obj).
+  void place_mesh(detail::Obj& o) const;
   /// Whether apply_queue(st, tbvs) has work. Needs `book`.
   bool queued(bool tbvs) const { return !queued_reveals.empty() || (tbvs && !unclaimed.empty()); }
   /// Reveals the queued TBVs and, with `tbvs`, gives a TBV to every
