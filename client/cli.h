@@ -23,7 +23,7 @@ inline constexpr int kExitError = 2;     ///< Bad input, bad arguments, I/O fail
 int report(const FormatError& error);
 
 /// The scene and engine options of the commands that run the engine
-/// (`replay`, `verify`).
+/// (`replay`, `verify`, `export`).
 struct EngineArgs {
   std::string scene;  ///< voxvis-scene/1 file.
   std::string grid;   ///< "NX,NY,NZ" overriding the scene's grid; empty: keep.
@@ -174,6 +174,19 @@ struct LoadgenArgs {
 };
 
 int run_loadgen(const LoadgenArgs& args);
+
+struct ExportArgs {
+  EngineArgs engine;
+  std::string frames;       ///< Frames file, JSON Lines; empty: the scene alone.
+  std::int64_t frame = -1;  ///< With `frames`: the 0-based frame whose culling is written.
+  bool frame_given = false;
+  std::string vdb;          ///< The .vdb file to write.
+  bool quiet = false;
+};
+
+/// `voxvis export`: the scene's voxels, and with a frame its culling, as
+/// OpenVDB grids (docs/formats.md, "VDB export").
+int run_export(const ExportArgs& args);
 
 /// Parses "NX,NY,NZ" (integers in [1, max_per_axis]); on error sets `message`.
 bool parse_grid_arg(const std::string& text, int max_per_axis, int out[3], std::string* message);

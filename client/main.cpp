@@ -1,5 +1,5 @@
 // main.cpp — the `voxvis` command line: argument parsing only; the work is in
-// replay.cpp, generate_cmd.cpp and, for the commands that talk to
+// replay.cpp, generate_cmd.cpp, export_cmd.cpp and, for the commands that talk to
 // voxvis-server, load_cmd.cpp, view_cmd.cpp, simulate_cmd.cpp and loadgen_cmd.cpp.
 #include <cmath>
 #include <cstdio>
@@ -48,6 +48,7 @@ int run(int argc, char** argv) {
       "  voxvis generate --preset paper --scene-out scene.json --frames-out frames.jsonl\n"
       "  voxvis replay --scene scene.json --frames frames.jsonl --out pvs.jsonl\n"
       "  voxvis verify --scene scene.json --frames frames.jsonl --pvs pvs.jsonl --resolution 640x360\n"
+      "  voxvis export --scene scene.json --frames frames.jsonl --frame 120 --vdb frame120.vdb\n"
       "  voxvis load --server 127.0.0.1:50051 --scene scene.json --id paper\n"
       "  voxvis view --scene paper --frames frames.jsonl --out pvs.jsonl\n"
       "  voxvis tick --scene paper --frames frames.jsonl --viewers 24 --out pvs-dir\n"
@@ -148,6 +149,41 @@ int run(int argc, char** argv) {
   verify_cmd->footer(
       "Output: one line per frame, {\"frame\", \"visible\", \"missed\", \"pvs_size\", \"stats\"}.\n"
       "Exit status 3 when any visible object was missing from a PVS (docs/verify.md).");
+
+  // voxvis export
+  voxvis::cli::ExportArgs exp;
+  double export_tbv = -1.0;
+  CLI::App* export_cmd = app.add_subcommand(
+      "export", "Write the scene's voxels, and one frame's culling, as OpenVDB grids (for Houdini, Blender).");
+  export_cmd->add_option("--scene", exp.engine.scene, "Scene file (JSON, format voxvis-scene/1)")
+      ->required()
+      ->type_name("FILE");
+  CLI::Option* export_frames_opt =
+      export_cmd->add_option("--frames", exp.frames, "Frames file (JSON Lines), as for replay")->type_name("FILE");
+  CLI::Option* export_frame_opt =
+      export_cmd->add_option("--frame", exp.frame,
+                             "0-based frame of --frames whose culling to write (frames 0..K are replayed)")
+          ->type_name("K");
+  export_frame_opt->needs(export_frames_opt);
+  export_frames_opt->needs(export_frame_opt);
+  export_cmd->add_option("--vdb", exp.vdb, "OpenVDB file to write, whole or not at all")
+      ->required()
+      ->type_name("FILE");
+  export_cmd->add_option("--grid", exp.engine.grid, "Grid resolution overriding the scene's, as for replay")
+      ->type_name("NX,NY,NZ");
+  CLI::Option* export_tbv_opt =
+      export_cmd->add_option("--tbv-period", export_tbv, "TBV period for the engine, as for replay")
+          ->type_name("SECONDS");
+  export_cmd->add_option("--occlusion-buffer", exp.engine.occlusion_buffer,
+                         "Occlusion buffer width, as for replay (0: off, the voxel traversal; default 160)")
+      ->type_name("PIXELS");
+  export_cmd->add_flag("-q,--quiet", exp.quiet, "No progress line and no summary on stderr");
+  export_cmd->footer(
+      "Grids: opaque (bool: static opacity) and objects (int32: objects touching each voxel,\n"
+      "dynamic ones where frame K's moves left them); with --frame, visited and occluded\n"
+      "(bool: what frame K's traversal did) and pvs (bool: voxels of frame K's PVS objects).\n"
+      "Index (i,j,k) is voxel (i,j,k); the transform puts its centre at\n"
+      "bounds.min + (i+0.5, j+0.5, k+0.5) * voxel_size (docs/formats.md, \"VDB export\").");
 
   // voxvis report
   voxvis::cli::ReportArgs rep;
@@ -396,6 +432,11 @@ int run(int argc, char** argv) {
   if (verify_cmd->parsed()) {
     if (!take_tbv(verify_tbv_opt, verify_tbv, &verify.engine)) return voxvis::cli::report(bad_tbv);
     return voxvis::cli::run_verify(verify);
+  }
+  if (export_cmd->parsed()) {
+    if (!take_tbv(export_tbv_opt, export_tbv, &exp.engine)) return voxvis::cli::report(bad_tbv);
+    exp.frame_given = export_frame_opt->count() > 0;
+    return voxvis::cli::run_export(exp);
   }
   if (report_cmd->parsed()) return voxvis::cli::run_report(rep);
   if (gen_cmd->parsed()) return voxvis::cli::run_generate(gen);

@@ -29,6 +29,10 @@ class OutputFile {
   /// Closes and removes the temporary file (no-op for stdout).
   void discard();
   const std::string& path() const { return path_; }
+  /// The temporary file, for a library that writes a file by name (OpenVDB)
+  /// instead of through write(): commit() renames it into place all the
+  /// same. Empty for standard output.
+  const std::string& temp_path() const { return temp_path_; }
 
  private:
   std::FILE* file_ = nullptr;

@@ -12,6 +12,7 @@ VOXVIS_PACKAGES=(
   libegl-dev libopengl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri
   gnuplot-nox
   python3-grpcio python3-protobuf
+  libopenvdb-dev libboost-iostreams-dev
 )
 
 voxvis_ensure_deps() {

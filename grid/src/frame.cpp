@@ -21,6 +21,7 @@
 
 #include "numeric.h"
 #include "traverse.h"
+#include "voxvis/inspect.h"
 
 namespace voxvis {
 
@@ -119,11 +120,17 @@ void traverse(FrameRun& f) {
   f.st.ob_width = static_cast<std::uint32_t>(f.w.ob.width());
   if (!f.st.frustum_fallback) {
     if (!detail::make_frame_geometry(s, f.wf, &g)) return;  // The grid is wholly out of view.
+    FrameTrace* trace = f.w.trace;
     if (f.w.ob.on()) {
+      if (trace != nullptr) trace->traversal = FrameTrace::Traversal::Cells;
       detail::traverse_cells(s, f.w, f.wf, f.st, g);
     } else {
       f.w.begin_voxels(static_cast<std::size_t>(s.spec.voxel_count()));
       detail::traverse_voxels(s, f.w, f.wf, f.st, g);
+      if (trace != nullptr) {
+        trace->traversal = FrameTrace::Traversal::Voxels;
+        detail::trace_voxels(s, f.w, *trace);
+      }
     }
     return;
   }
@@ -308,6 +315,7 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
     ~InFlight() { n.fetch_sub(1, std::memory_order_relaxed); }
   } in_flight{s.frames_in_flight};
   Scratch::Impl& w = scratch.impl();
+  if (w.trace != nullptr) w.trace->clear();
   w.begin(s.objs.size(), s.opaque_boxes.size(), s.bricks.size(), s.cell_base[static_cast<std::size_t>(s.pyr.levels)]);
   FrameRun f{s, w, detail::make_world_frustum(camera), viewer, t, FrameStats{}, w.wake};
   std::uint64_t tick_split[2] = {0, 0};  // Traversal; beyond the grid and retest.

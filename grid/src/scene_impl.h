@@ -213,6 +213,11 @@ struct Scratch::Impl {
   /// Per cell of levels 1 and up (Scene::Impl::cell_base): frame in which
   /// its static objects were collected.
   std::vector<std::uint32_t> cell_seen;
+  /// Where the frame records what its traversal did (Scratch::set_trace,
+  /// voxvis/inspect.h); null: nothing is recorded. Tested once per cell the
+  /// cell traversal skips or enters whole, never per voxel: the voxel
+  /// traversal's record is read from `stamp` after it.
+  FrameTrace* trace = nullptr;
 
   /// Starts a frame for a scene of `objects` slots, `boxes` opaque boxes,
   /// `bricks` bricks and `cells` cells of levels >= 1.

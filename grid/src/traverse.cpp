@@ -30,6 +30,7 @@
 
 #include "numeric.h"
 #include "traverse.h"
+#include "voxvis/inspect.h"
 
 namespace voxvis {
 
@@ -40,8 +41,12 @@ using detail::max_abs;
 
 namespace {
 
-constexpr std::uint32_t kLive = 1;
-constexpr std::uint32_t kBlocked = 2;
+// A reached voxel's status (its stamp's low bits). Both blocking ones have
+// the kBlocked bit, which is all the tests read; the two are told apart only
+// for the frame's record (trace_voxels): hidden, or an occluder in view.
+constexpr std::uint32_t kLive = 1;     ///< In view, not blocking.
+constexpr std::uint32_t kBlocked = 2;  ///< Proven hidden.
+constexpr std::uint32_t kOpaque = 3;   ///< In view and opaque beyond the near plane: it blocks.
 /// While frames of other viewers run, Scene::frame renews TBVs expiring
 /// within this many seconds of the frame along with the expired ones.
 constexpr double kRenewAhead = 0.1;
@@ -110,7 +115,7 @@ class Traversal {
   bool blocks(const std::int64_t u[3]) const {
     if (!in_grid(u)) return false;  // Empty space beyond the grid.
     const std::uint8_t st = w_.stamp[static_cast<std::size_t>(gindex(u))];
-    return (st & ~3u) != tag_ || (st & 3u) == kBlocked;
+    return (st & ~3u) != tag_ || (st & kBlocked) != 0;
   }
   Range required(int b, std::int64_t vb, double t0, double t1, std::int64_t k,
                  bool* whole = nullptr) const;
@@ -504,7 +509,7 @@ void Traversal::visit_row(int face, int a, int b, int d, std::int64_t la, std::i
       const Vec3 lo{static_cast<double>(v[0]), static_cast<double>(v[1]), static_cast<double>(v[2])};
       blocking = lf_.depth_min(lo) >= lf_.near + depth_tol_;
     }
-    stamp = static_cast<std::uint8_t>(tag_ | (blocking ? kBlocked : kLive));
+    stamp = static_cast<std::uint8_t>(tag_ | (blocking ? kOpaque : kLive));
     if (!blocking) {
       live_lo = std::min(live_lo, vb);
       live_hi = vb;
@@ -651,6 +656,29 @@ void traverse_voxels(const Scene::Impl& s, Scratch::Impl& w, const WorldFrustum&
                      const FrameGeometry& g) {
   Collector col(s, w, wf, st, g);
   Traversal(s, w, wf, st, g, col).run();
+}
+
+void trace_voxels(const Scene::Impl& s, const Scratch::Impl& w, FrameTrace& trace) {
+  // The stamps hold every reached voxel's status, so the record costs the
+  // traversal nothing: it is read here, a run at a time. 0: not reached.
+  const std::uint32_t tag = w.stamp_tag << 2;
+  auto status = [tag](std::uint8_t stamp) { return (stamp & ~3u) == tag ? stamp & 3u : 0u; };
+  // Live and opaque voxels are both visited: one run.
+  auto kind = [](std::uint32_t st) { return st == kOpaque ? kLive : st; };
+  for (int z = 0; z < s.res.z; ++z)
+    for (int y = 0; y < s.res.y; ++y) {
+      const std::uint8_t* row = w.stamp.data() + s.index(0, y, z);
+      for (int x = 0; x < s.res.x;) {
+        const std::uint32_t k = kind(status(row[x]));
+        int end = x + 1;
+        while (end < s.res.x && kind(status(row[end])) == k) ++end;
+        if (k != 0) {
+          const VoxelBox run{glm::ivec3(x, y, z), glm::ivec3(end - 1, y, z)};
+          (k == kLive ? trace.visited : trace.occluded).push_back(run);
+        }
+        x = end;
+      }
+    }
 }
 
 }  // namespace detail

@@ -20,5 +20,9 @@ void traverse_voxels(const Scene::Impl& s, Scratch::Impl& w, const WorldFrustum&
                      const FrameGeometry& g);
 void traverse_cells(const Scene::Impl& s, Scratch::Impl& w, const WorldFrustum& wf, FrameStats& st,
                     const FrameGeometry& g);
+/// The frame's record (voxvis/inspect.h) of the voxel traversal that just
+/// ran with `w`, read from its stamps; the cell traversal writes its own
+/// as it goes (w.trace).
+void trace_voxels(const Scene::Impl& s, const Scratch::Impl& w, FrameTrace& trace);
 
 }  // namespace voxvis::detail

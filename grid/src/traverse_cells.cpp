@@ -39,6 +39,7 @@
 
 #include "numeric.h"
 #include "traverse.h"
+#include "voxvis/inspect.h"
 
 namespace voxvis::detail {
 namespace {
@@ -103,6 +104,12 @@ class CellTraversal {
   void see_layers(const glm::ivec3& c, std::size_t bi);
   /// Whether every pixel holds a bound and `zmin` lies beyond all of them.
   bool beyond_buffer(double zmin);
+  /// Records cell c of level l in the frame's trace (w.trace, voxvis/inspect.h)
+  /// as visited or occluded; the caller tests w.trace, once per cell.
+  void trace(int l, const glm::ivec3& c, bool visited) const {
+    const VoxBox b = s_.pyr.span(l, c, 0);
+    (visited ? w_.trace->visited : w_.trace->occluded).push_back(VoxelBox{b.lo, b.hi});
+  }
 
   const Scene::Impl& s_;
   Scratch::Impl& w_;
@@ -130,6 +137,7 @@ void CellTraversal::enter(int l, const glm::ivec3& c, bool full) {
   double zmin = 0.0;
   if (skipped(l, c, full, &zmin)) return;
   if (!full) {
+    if (w_.trace != nullptr) trace(l, c, true);
     // Empty space in view: TBVs made after this frame keep clear of it.
     if (l >= 2) {
       col_.see_cell(l, c);
@@ -166,6 +174,7 @@ bool CellTraversal::skipped(int l, const glm::ivec3& c, bool full, double* zmin_
     const VoxBox b = s_.pyr.span(l, c, 0);
     const glm::ivec3 n = b.hi - b.lo + 1;
     st_.ob_voxels_culled += static_cast<std::uint64_t>(n.x) * static_cast<std::uint64_t>(n.y) * static_cast<std::uint64_t>(n.z);
+    if (w_.trace != nullptr) trace(l, c, false);
     return true;
   }
   *zmin_out = zmin;
@@ -212,6 +221,7 @@ void CellTraversal::visit(int l, const glm::ivec3& c, double zmin) {
   const std::size_t ci = s_.pyr.index(l, c);
   take_contents(l, ci);
   if (l == 1) {
+    if (w_.trace != nullptr) trace(l, c, true);
     visit_brick(c, has_dyn_);
     return;
   }
@@ -318,6 +328,17 @@ void CellTraversal::take_whole(const glm::ivec3& c, std::size_t ci) {
     take_contents(1, bi);
     visit_brick(b, false, false);
   });
+  // The trace counts the cell visited whole, less its bricks proven hidden
+  // (or missing the frustum), as the seen record below does.
+  if (w_.trace != nullptr) {
+    if (hidden == 0) {
+      trace(2, c, true);
+    } else {
+      for_children(2, c, [&](const glm::ivec3& b, int bit) {
+        if (!(hidden >> bit & 1u)) trace(1, b, true);
+      });
+    }
+  }
   if (!has_dyn_) return;
   if (hidden == 0) {
     col_.see_cell(2, c);

@@ -168,6 +168,8 @@ struct GridSpec {
   }
 };
 
+struct FrameTrace;  // voxvis/inspect.h
+
 /// Per-thread per-frame working memory. Reused across frames, viewers and
 /// scenes; grows to the largest scene it has served.
 class Scratch {
@@ -176,6 +178,12 @@ class Scratch {
   ~Scratch();
   Scratch(const Scratch&) = delete;
   Scratch& operator=(const Scratch&) = delete;
+  /// From now on the frames computed with this Scratch record what their
+  /// traversal did into `*trace` (emptied as each frame starts), until
+  /// set_trace(nullptr); off by default. Recording changes no frame's
+  /// answer, and off it costs a pointer test per cell the traversal skips
+  /// or enters whole (none per voxel), and one per frame with the buffer off.
+  void set_trace(FrameTrace* trace);
   struct Impl;
   Impl& impl() { return *impl_; }
 
@@ -283,8 +291,10 @@ class Scene {
   std::vector<Move> dynamic_centers(double* time = nullptr, std::uint64_t* epoch = nullptr) const;
 
   struct Impl;
-  /// The engine's internals (grid/src/scene_impl.h), for its own tests.
+  /// The engine's internals (grid/src/scene_impl.h), for its own tests and
+  /// voxvis/inspect.h.
   Impl& impl() { return *impl_; }
+  const Impl& impl() const { return *impl_; }
 
  private:
   explicit Scene(std::unique_ptr<Impl> impl);
