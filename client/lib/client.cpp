@@ -161,10 +161,12 @@ void to_proto(const SceneDesc& scene, v1::SceneDescription* out) {
   for (const ObjectDesc& o : scene.objects) {
     v1::Object* p = out->add_objects();
     p->set_id(o.id);
+    // A mesh has no form on the wire yet: its shape is left unset, which
+    // the server refuses naming the object, rather than sent as a box.
     if (o.shape == Shape::Sphere) {
       to_proto(o.center, p->mutable_sphere()->mutable_center());
       p->mutable_sphere()->set_radius(o.radius);
-    } else {
+    } else if (o.shape == Shape::Box) {
       to_proto(o.center - o.half_extent, p->mutable_box()->mutable_min());
       to_proto(o.center + o.half_extent, p->mutable_box()->mutable_max());
     }

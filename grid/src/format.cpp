@@ -18,6 +18,7 @@
 // Nothing here throws on bad input: SAX callbacks return false to stop, and
 // values are only read after their type has been checked.
 #include "voxvis/format.h"
+#include "voxvis/mesh.h"
 
 #include <algorithm>
 #include <charconv>
@@ -569,6 +570,20 @@ class Checker {
     return true;
   }
 
+  /// A rotation [w, x, y, z]: four finite numbers, a unit quaternion
+  /// (validate_rotation).
+  bool quat(const json& v, const std::string& path, Quat* out) {
+    if (!v.is_array() || v.size() != 4)
+      return fail(path, "must be a unit quaternion [w, x, y, z], got " + describe(v));
+    double q[4];
+    for (std::size_t i = 0; i < 4; ++i)
+      if (!number(v[i], join_index(path, i), &q[i])) return false;
+    const Quat r(q[0], q[1], q[2], q[3]);
+    if (const Status st = validate_rotation(r, path); !st) return fail(st.field, st.message);
+    *out = r;
+    return true;
+  }
+
   /// An integral value in [lo, hi] (integral floats like 7.0 count).
   bool integer(const json& v, const std::string& path, double lo, double hi, double* out,
                const char* what) {
@@ -615,24 +630,87 @@ class Checker {
 
 const char* axis_name(int axis) { return axis == 0 ? "x" : (axis == 1 ? "y" : "z"); }
 
+/// A mesh object's own keys: "vertices" [[x, y, z], ...] and "triangles"
+/// [[i, j, k], ...] (model space), "center" (where the model origin goes,
+/// default [0, 0, 0]), "rotation" [w, x, y, z] (default [1, 0, 0, 0]) and
+/// "scale" (default 1); then validate_mesh_object's rules.
+bool parse_mesh(Checker& ck, const json& v, const std::string& path, ObjectDesc* obj) {
+  for (const char* k : {"radius", "min", "max"}) {
+    if (v.contains(k)) {
+      const std::string kp = join_key(path, k);
+      return ck.fail(path, "key " + quote_text(k) + " is not allowed for a mesh (give \"vertices\" and \"triangles\")",
+                     &kp);
+    }
+  }
+  auto mesh = std::make_shared<Mesh>();
+  const json* verts = ck.require(v, path, "vertices", "[[x, y, z], ...]");
+  if (verts == nullptr) return false;
+  const std::string vp = join_key(path, "vertices");
+  if (!verts->is_array()) return ck.fail(vp, "must be an array of [x, y, z], got " + describe(*verts));
+  if (verts->size() > kMaxMeshVertices)
+    return ck.fail(vp, "at most " + std::to_string(kMaxMeshVertices) + " vertices, got " + std::to_string(verts->size()));
+  mesh->vertices.resize(verts->size());
+  for (std::size_t i = 0; i < verts->size(); ++i)
+    if (!ck.vec3((*verts)[i], join_index(vp, i), &mesh->vertices[i])) return false;
+  const json* tris = ck.require(v, path, "triangles", "[[i, j, k], ...], indices into vertices");
+  if (tris == nullptr) return false;
+  const std::string tp = join_key(path, "triangles");
+  if (!tris->is_array()) return ck.fail(tp, "must be an array of [i, j, k], got " + describe(*tris));
+  if (tris->size() > kMaxMeshTriangles)
+    return ck.fail(tp, "at most " + std::to_string(kMaxMeshTriangles) + " triangles, got " + std::to_string(tris->size()));
+  mesh->triangles.resize(tris->size());
+  for (std::size_t i = 0; i < tris->size(); ++i) {
+    const json& t = (*tris)[i];
+    const std::string ip = join_index(tp, i);
+    if (!t.is_array() || t.size() != 3) return ck.fail(ip, "must be an array of 3 vertex indices, got " + describe(t));
+    for (std::size_t k = 0; k < 3; ++k) {
+      double d = 0.0;
+      if (!ck.integer(t[k], join_index(ip, k), 0.0, 4294967295.0, &d, "a vertex index (an integer >= 0)")) return false;
+      mesh->triangles[i][k] = static_cast<std::uint32_t>(d);
+    }
+  }
+  obj->shape = Shape::Mesh;
+  const auto center = v.find("center");
+  if (center != v.end() && !ck.vec3(*center, join_key(path, "center"), &obj->center)) return false;
+  const auto rotation = v.find("rotation");
+  if (rotation != v.end() && !ck.quat(*rotation, join_key(path, "rotation"), &obj->rotation)) return false;
+  const auto scale = v.find("scale");
+  if (scale != v.end() && !ck.number(*scale, join_key(path, "scale"), &obj->scale)) return false;
+  // The file names the mesh's keys on the object itself (no "mesh" key).
+  if (const Status st = validate_mesh(*mesh, path); !st) return ck.fail(st.field, st.message);
+  obj->mesh = std::move(mesh);
+  if (const Status st = validate_mesh_object(*obj, path); !st) return ck.fail(st.field, st.message);
+  return true;
+}
+
 bool parse_object(Checker& ck, const json& v, const std::string& path, ObjectDesc* out) {
   if (!ck.object(v, path)) return false;
-  if (!ck.known_keys(v, path, {"id", "shape", "center", "radius", "min", "max", "dynamic",
-                               "max_speed"})) {
+  if (!ck.known_keys(v, path, {"id", "shape", "center", "radius", "min", "max", "dynamic", "max_speed",
+                               "vertices", "triangles", "rotation", "scale"})) {
     return false;
   }
   ObjectDesc obj;
   const json* id = ck.require(v, path, "id");
   if (id == nullptr || !ck.id(*id, join_key(path, "id"), &obj.id)) return false;
 
-  const json* shape = ck.require(v, path, "shape", "\"sphere\" or \"box\"");
+  const json* shape = ck.require(v, path, "shape", "\"sphere\", \"box\" or \"mesh\"");
   if (shape == nullptr) return false;
   const std::string shape_path = join_key(path, "shape");
   if (!shape->is_string()) {
-    return ck.fail(shape_path, "must be \"sphere\" or \"box\", got " + describe(*shape));
+    return ck.fail(shape_path, "must be \"sphere\", \"box\" or \"mesh\", got " + describe(*shape));
   }
   const std::string& shape_name = shape->get_ref<const std::string&>();
-  if (shape_name == "sphere") {
+  if (shape_name != "mesh") {
+    for (const char* k : {"vertices", "triangles", "rotation", "scale"}) {
+      if (v.contains(k)) {
+        const std::string kp = join_key(path, k);
+        return ck.fail(path, "key " + quote_text(k) + " is only allowed for a mesh", &kp);
+      }
+    }
+  }
+  if (shape_name == "mesh") {
+    if (!parse_mesh(ck, v, path, &obj)) return false;
+  } else if (shape_name == "sphere") {
     obj.shape = Shape::Sphere;
     for (const char* k : {"min", "max"}) {
       if (v.contains(k)) {
@@ -677,8 +755,8 @@ bool parse_object(Checker& ck, const json& v, const std::string& path, ObjectDes
     obj.center = (lo + hi) * 0.5;
     obj.half_extent = (hi - lo) * 0.5;
   } else {
-    return ck.fail(shape_path,
-                   "unknown shape " + quote_text(shape_name, '"') + " (expected \"sphere\" or \"box\")");
+    return ck.fail(shape_path, "unknown shape " + quote_text(shape_name, '"') +
+                                   " (expected \"sphere\", \"box\" or \"mesh\")");
   }
 
   const auto dyn = v.find("dynamic");
@@ -825,7 +903,7 @@ bool parse_frame_dom(Checker& ck, const json& root, FrameInput* out) {
     for (std::size_t i = 0; i < moves->size(); ++i) {
       const std::string path = join_index("moves", i);
       const json& m = (*moves)[i];
-      if (!ck.object(m, path) || !ck.known_keys(m, path, {"id", "center"})) return false;
+      if (!ck.object(m, path) || !ck.known_keys(m, path, {"id", "center", "rotation"})) return false;
       Move move;
       if ((v = ck.require(m, path, "id")) == nullptr || !ck.id(*v, join_key(path, "id"), &move.id)) {
         return false;
@@ -833,6 +911,10 @@ bool parse_frame_dom(Checker& ck, const json& root, FrameInput* out) {
       if ((v = ck.require(m, path, "center")) == nullptr ||
           !ck.vec3(*v, join_key(path, "center"), &move.center)) {
         return false;
+      }
+      if (const auto r = m.find("rotation"); r != m.end()) {
+        if (!ck.quat(*r, join_key(path, "rotation"), &move.rotation)) return false;
+        move.has_rotation = true;
       }
       const auto [it, inserted] = seen.emplace(move.id, i);
       if (!inserted) {

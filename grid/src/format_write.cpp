@@ -10,6 +10,53 @@
 #include "voxvis/format.h"
 
 namespace voxvis {
+namespace {
+
+using detail::append_int;
+using detail::append_number;
+using detail::append_vec3;
+
+void append_quat(std::string& out, const Quat& q) {
+  out += '[';
+  append_number(out, q.w);
+  out += ", ";
+  append_number(out, q.x);
+  out += ", ";
+  append_number(out, q.y);
+  out += ", ";
+  append_number(out, q.z);
+  out += ']';
+}
+
+/// A mesh object's keys after its id: inline vertices and triangles, and its
+/// placement (always written, defaults included, so that a reader sees it).
+void append_mesh(std::string& out, const ObjectDesc& o) {
+  out += ", \"shape\": \"mesh\", \"center\": ";
+  append_vec3(out, o.center);
+  out += ", \"rotation\": ";
+  append_quat(out, o.rotation);
+  out += ", \"scale\": ";
+  append_number(out, o.scale);
+  out += ", \"vertices\": [";
+  const Mesh* m = o.mesh.get();
+  for (std::size_t i = 0; m != nullptr && i < m->vertices.size(); ++i) {
+    if (i > 0) out += ", ";
+    append_vec3(out, m->vertices[i]);
+  }
+  out += "], \"triangles\": [";
+  for (std::size_t i = 0; m != nullptr && i < m->triangles.size(); ++i) {
+    if (i > 0) out += ", ";
+    out += '[';
+    for (int k = 0; k < 3; ++k) {
+      if (k > 0) out += ", ";
+      append_int(out, m->triangles[i][static_cast<std::size_t>(k)]);
+    }
+    out += ']';
+  }
+  out += ']';
+}
+
+}  // namespace
 
 using detail::append_int;
 using detail::append_number;
@@ -39,7 +86,9 @@ std::string scene_to_json(const SceneDesc& scene) {
     first = false;
     out += "{\"id\": ";
     append_int(out, o.id);
-    if (o.shape == Shape::Box) {
+    if (o.shape == Shape::Mesh) {
+      append_mesh(out, o);
+    } else if (o.shape == Shape::Box) {
       out += ", \"shape\": \"box\", \"min\": ";
       append_vec3(out, o.center - o.half_extent);
       out += ", \"max\": ";
@@ -90,6 +139,10 @@ std::string frame_to_json(const FrameInput& frame) {
       append_int(out, m.id);
       out += ", \"center\": ";
       append_vec3(out, m.center);
+      if (m.has_rotation) {
+        out += ", \"rotation\": ";
+        append_quat(out, m.rotation);
+      }
       out += '}';
     }
     out += ']';
