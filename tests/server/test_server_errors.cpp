@@ -93,6 +93,15 @@ TEST(ServerErrors, BadInputIsRefusedAndOthersKeepBeingServed) {
     EXPECT_THAT(s.error_message(), HasSubstr("camera"));
     watcher.expect_served("no camera");
   }
+  {  // A mesh scene: the wire and the data directory carry no meshes yet.
+    const std::string mesh = R"({"format": "voxvis-scene/1", "bounds": {"min": [0, 0, 0], "max": [8, 8, 8]},
+      "objects": [{"id": 1, "shape": "mesh", "center": [4, 4, 4],
+                   "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], "triangles": [[0, 1, 2]]}]})";
+    const grpc::Status s = api.create_scene_json("m", mesh);
+    EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << show(s);
+    EXPECT_THAT(s.error_message(), HasSubstr("objects[0].shape: mesh objects are not served yet"));
+    watcher.expect_served("mesh scene");
+  }
   {  // Unknown scene, on every call that names one.
     const auto nf = grpc::StatusCode::NOT_FOUND;
     ViewStream v(api, "nope");
