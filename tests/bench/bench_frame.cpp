@@ -99,6 +99,7 @@
 
 #include "scenes.h"
 #include "voxvis/generate.h"
+#include "voxvis/mesh.h"
 #include "voxvis/raycast.h"
 #include "voxvis/scene.h"
 
@@ -735,6 +736,69 @@ void BM_Ticks(benchmark::State& state, Path which, glm::ivec3 grid, int viewers,
   state.counters["viewers"] = viewers;
 }
 
+/// A static level of `triangles` triangles: a rolling terrain heightfield
+/// over a 256 x 64 x 256 grid, one mesh. Reports the time of
+/// Scene::create (validation, placement, the triangles' voxels, the
+/// lists), of Scene::estimate, the voxels holding the mesh, and a first
+/// frame's time from above the terrain.
+void BM_MeshBuild(benchmark::State& state, int triangles) {
+  const int side = static_cast<int>(std::sqrt(triangles / 2.0));
+  auto mesh = std::make_shared<Mesh>();
+  mesh->vertices.reserve(static_cast<std::size_t>(side + 1) * static_cast<std::size_t>(side + 1));
+  for (int j = 0; j <= side; ++j)
+    for (int i = 0; i <= side; ++i) {
+      const double x = 256.0 * i / side, z = 256.0 * j / side;
+      mesh->vertices.push_back(Vec3(x, 20.0 + 8.0 * std::sin(x / 17.0) * std::cos(z / 23.0), z));
+    }
+  for (int j = 0; j < side; ++j)
+    for (int i = 0; i < side; ++i) {
+      const auto v = static_cast<std::uint32_t>(j * (side + 1) + i), w = v + static_cast<std::uint32_t>(side + 1);
+      mesh->triangles.push_back({v, v + 1, w});
+      mesh->triangles.push_back({v + 1, w + 1, w});
+    }
+  SceneDesc desc;
+  desc.bounds_min = Vec3(0.0);
+  desc.bounds_max = Vec3(256.0, 64.0, 256.0);
+  desc.grid = glm::ivec3(256, 64, 256);
+  ObjectDesc o;
+  o.id = 1;
+  o.shape = Shape::Mesh;
+  o.mesh = mesh;
+  desc.objects.push_back(o);
+  double estimate_s = 0.0, frame_us = 0.0;
+  std::uint64_t entries = 0;
+  for (auto _ : state) {
+    auto t0 = std::chrono::steady_clock::now();
+    SceneCost cost;
+    if (!Scene::estimate(desc, {}, &cost).ok) {
+      state.SkipWithError("estimate failed");
+      return;
+    }
+    estimate_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    entries = cost.id_entries;
+    std::unique_ptr<Scene> scene;
+    if (!Scene::create(desc, {}, &scene).ok) {
+      state.SkipWithError("create failed");
+      return;
+    }
+    Scratch scratch;
+    FrameResult r;
+    Camera cam;
+    cam.eye = Vec3(10.0, 40.0, 10.0);
+    cam.dir = Vec3(1.0, -0.3, 1.0);
+    cam.far = 1000.0;
+    if (!scene->frame(scene->add_viewer(), cam, 0.0, scratch, &r).ok) {
+      state.SkipWithError("frame failed");
+      return;
+    }
+    frame_us = r.stats.time_us;
+  }
+  state.counters["triangles"] = static_cast<double>(mesh->triangles.size());
+  state.counters["estimate_s"] = estimate_s;
+  state.counters["voxel_entries"] = static_cast<double>(entries);
+  state.counters["first_frame_us"] = frame_us;
+}
+
 void register_all() {
   // The occlusion buffer's widths (SceneOptions::occlusion_buffer), 0 = off.
   const int widths[] = {0, 64, 128, 256, 512};
@@ -799,6 +863,10 @@ void register_all() {
       ->Iterations(3)
       ->UseRealTime()
       ->Unit(benchmark::kMillisecond);
+  for (int n : {100000, 1000000})
+    benchmark::RegisterBenchmark(("mesh_build/triangles:" + std::to_string(n)).c_str(), BM_MeshBuild, n)
+        ->Iterations(1)
+        ->Unit(benchmark::kMillisecond);
   for (int ob : {0, 256})
     for (int n : {1000, 10000, 100000}) {
       const std::string name = "hidden_dynamic/n:" + std::to_string(n) + suffix(ob);
