@@ -78,8 +78,13 @@
 //     tick_median_ms, tick_p99_ms, busy (engine time over both workers' wall
 //     time), and per tick the TBVs renewed, created and revealed.
 //
+//   mesh_build/triangles:N
+//     One static mesh of N triangles (a terrain over 256 x 64 x 256 voxels):
+//     Scene::estimate and Scene::create's time, the voxels holding it, and a
+//     first frame (BM_MeshBuild).
+//
 // Filter with --benchmark_filter=walkthrough, hidden_dynamic, indoor, voxel_world,
-// city, viewers or ticks (a regular expression: 'city/ob:256', 'ob:(128|512)').
+// city, viewers, ticks or mesh_build (a regular expression: 'city/ob:256', 'ob:(128|512)').
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
