@@ -35,8 +35,9 @@
 // arithmetic (-ffp-contract=off: a fused multiply-add breaks the symmetry).
 //
 // The hierarchy prunes with the boxes of the model-space triangles grown per
-// ray by `pad` = 1e-12 * (|origin| + the mesh's largest coordinate), about
-// 10^4 times what the sheared coordinates and the box test lose to rounding:
+// ray by `pad` = 1e-12 * (|origin| + the mesh's largest coordinate),
+// thousands of times what the sheared coordinates (a few 2^-53 of that
+// magnitude) and the box test lose to rounding:
 // a triangle the test accepts is never in a box the ray misses. A box is
 // skipped when it is entered beyond the best hit so far; that agrees with
 // testing every triangle except where a hit's computed depth strays from

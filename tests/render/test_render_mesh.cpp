@@ -209,6 +209,7 @@ TEST(RenderMesh, AgreesWithTheRayCasterOnMeshScenes) {
     }
   }
   EXPECT_LE(differ, pixels / 500) << differ << " of " << pixels;
+  RecordProperty("pixels_differing", std::to_string(differ) + " of " + std::to_string(pixels));
   EXPECT_GT(mesh_pixels, 200);  // Meshes were seen.
 }
 
