@@ -199,7 +199,10 @@ int run_report(const ReportArgs& args) {
   auto apply = [&](std::vector<ObjectDesc>* objects, const FrameInput& f) {
     for (const Move& mv : f.moves) {
       const auto it = slot.find(mv.id);
-      if (it != slot.end()) (*objects)[it->second].center = mv.center;
+      if (it == slot.end()) continue;
+      ObjectDesc& o = (*objects)[it->second];
+      o.center = mv.center;
+      if (mv.has_rotation && o.shape == Shape::Mesh) o.rotation = mv.rotation;
     }
   };
   std::vector<std::vector<ObjectId>> exact(frames.size());

@@ -234,7 +234,9 @@ int run_verify(const VerifyArgs& args) {
       if (!objects[it->second].dynamic)
         return fail(report(FormatError{args.frames, line_no, field,
                                        "object " + std::to_string(mv.id) + " is static and cannot move"}));
-      objects[it->second].center = mv.center;
+      ObjectDesc& o = objects[it->second];
+      o.center = mv.center;
+      if (mv.has_rotation && o.shape == Shape::Mesh) o.rotation = mv.rotation;
     }
     // The PVS: the engine runs every frame (its state depends on the frames
     // before), a PVS file is read line by line; both only kept in the slice.

@@ -179,11 +179,13 @@ Status SceneRegistry::load(const std::string& id, const std::string& json, const
     if (Status s = validate_time("t", *t); !s) return Status::Error("", source + ": saved time: " + s.str());
   }
   if (positions) {
-    std::map<ObjectId, Vec3> at;
-    for (const Move& m : *positions) at[m.id] = m.center;
+    std::map<ObjectId, const Move*> at;
+    for (const Move& m : *positions) at[m.id] = &m;
     for (ObjectDesc& o : desc.objects) {
       auto it = at.find(o.id);
-      if (o.dynamic && it != at.end()) o.center = it->second;
+      if (!o.dynamic || it == at.end()) continue;
+      o.center = it->second->center;
+      if (it->second->has_rotation && o.shape == Shape::Mesh) o.rotation = it->second->rotation;
     }
   }
   grpc::Status g = create(id, std::move(desc), json, true, persist);

@@ -21,7 +21,9 @@ std::vector<ObjectDesc> objects_at(const std::vector<ObjectDesc>& objects, const
   for (const Move& m : centers) {
     it = std::lower_bound(it, out.end(), m.id, [](const ObjectDesc& o, ObjectId id) { return o.id < id; });
     if (it == out.end()) break;
-    if (it->id == m.id) it->center = m.center;
+    if (it->id != m.id) continue;
+    it->center = m.center;
+    if (m.has_rotation && it->shape == Shape::Mesh) it->rotation = m.rotation;
   }
   return out;
 }

@@ -96,7 +96,8 @@ class Verifier {
 };
 
 /// The objects of a scene at the positions of `centers` (ascending ids):
-/// `objects` (ascending ids) with the dynamic ones' centres replaced.
+/// `objects` (ascending ids) with the dynamic ones' centres replaced, and a
+/// mesh's rotation too when its move has one.
 std::vector<ObjectDesc> objects_at(const std::vector<ObjectDesc>& objects, const std::vector<Move>& centers);
 
 }  // namespace voxvis::server

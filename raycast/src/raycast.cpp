@@ -13,6 +13,12 @@
 // - a sphere's leaf box is its bounding box grown by a margin far above the
 //   rounding error of intersect()'s sphere formula (whose grazing hits may
 //   lie outside the exact ball by about sqrt(2^-53 * r * distance));
+// - a mesh's leaf box is its placed model box grown by 1e-10 of the
+//   magnitudes involved, far above the rounding of taking rays into its
+//   frame (PlacedMesh::world_box); its triangles are found through its own
+//   hierarchy in model space, built once per mesh (mesh_bvh.h says how that
+//   one handles rounding, and where it may differ from testing every
+//   triangle: rays grazing a triangle's plane);
 // - a box is skipped only when its entry is strictly beyond the nearest hit,
 //   so every object entered at exactly that depth is still tested: ties make
 //   all tied objects visible, as brute force does.
@@ -30,7 +36,12 @@
 // bit-for-bit agreement with the brute-force definition the tests rely on;
 // on top of either, the tie rule, the near/far clipping and the margins
 // above would still be ours, so the library would add a dependency without
-// taking the hard part. A binned-SAH hierarchy is about 200 lines.
+// taking the hard part. A binned-SAH hierarchy is about 200 lines
+// (bvh_build.cpp), shared with the meshes' hierarchies. For triangles too
+// Embree is single precision; CGAL's exact predicates would decide each ray
+// and triangle exactly, but the watertight test in double (mesh_bvh.h) gives
+// the conservative edge rule the caster needs in about 30 lines, in the
+// mesh's frame, with no second hierarchy to place per object.
 #include "voxvis/raycast.h"
 
 #include <algorithm>
@@ -46,6 +57,10 @@
 
 #include <glm/geometric.hpp>
 
+#include "bvh_build.h"
+#include "mesh_bvh.h"
+#include "voxvis/mesh.h"
+
 namespace voxvis::raycast {
 namespace {
 
@@ -57,12 +72,10 @@ bool finite3(const Vec3& v) {
   return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
 }
 
-/// Axis-aligned bounding box of an object (exact for boxes).
-void object_aabb(const ObjectDesc& obj, Vec3* lo, Vec3* hi) {
-  const Vec3 h = obj.shape == Shape::Sphere ? Vec3(obj.radius) : obj.half_extent;
-  *lo = obj.center - h;
-  *hi = obj.center + h;
-}
+using detail::BvhItem;
+using detail::BvhNode;
+using detail::MeshSet;
+using detail::PlacedMesh;
 
 /// Minimum and maximum of n·(p - origin) over the box [lo, hi].
 void box_extent_along(const Vec3& n, const Vec3& origin, const Vec3& lo, const Vec3& hi,
@@ -97,6 +110,7 @@ double unit_from_bits(std::uint64_t bits) {
 struct Candidate {
   std::size_t index;  ///< Into the objects vector.
   double zmin;        ///< Least depth any of its points can have, clipped to near.
+  const PlacedMesh* mesh = nullptr;  ///< A mesh object's triangles, placed; else null.
 };
 
 struct Ray {
@@ -114,20 +128,31 @@ constexpr double kConeDir[4][2] = {{0.9210609940028851, 0.3894183423086505},
                                    {-0.9210609940028851, -0.3894183423086505},
                                    {0.3894183423086505, -0.9210609940028851}};
 
+/// The depth at which the ray eye + t*d is first in `obj` within [near,
+/// far] (raycast.h): a sphere's or box's interval clipped, a mesh's least
+/// hit there (`mesh`: its triangles placed for the eye; a mesh object
+/// without it is never hit). False when the ray does not meet it there.
+/// Adds the ray–triangle tests made to `*tests`.
+bool clipped_entry(const ObjectDesc& obj, const PlacedMesh* mesh, const ViewBasis& b, const Vec3& d, double* entry,
+                   std::uint64_t* tests) {
+  if (obj.shape == Shape::Mesh) return mesh && mesh->hit(d, b.near, b.far, false, entry, tests);
+  double t0 = 0.0;
+  double t1 = 0.0;
+  if (!intersect(obj, b.eye, d, &t0, &t1)) return false;
+  *entry = std::max(t0, b.near);
+  return *entry <= std::min(t1, b.far);
+}
+
 /// Casts one ray against `cands` (sorted by zmin) and appends the first hits'
 /// indices to `hits` (cleared first).
 void cast(const std::vector<ObjectDesc>& objects, const std::vector<Candidate>& cands,
-          const ViewBasis& basis, const Vec3& d, std::vector<std::size_t>* hits) {
+          const ViewBasis& basis, const Vec3& d, std::vector<std::size_t>* hits, std::uint64_t* tests) {
   hits->clear();
   double best = kInf;
   for (const Candidate& c : cands) {
     if (c.zmin - 1e-9 * (1.0 + std::abs(best)) > best) break;
-    double t0 = 0.0;
-    double t1 = 0.0;
-    if (!intersect(objects[c.index], basis.eye, d, &t0, &t1)) continue;
-    const double entry = std::max(t0, basis.near);
-    const double exit = std::min(t1, basis.far);
-    if (!(entry <= exit)) continue;
+    double entry = 0.0;
+    if (!clipped_entry(objects[c.index], c.mesh, basis, d, &entry, tests)) continue;
     if (entry < best) {
       best = entry;
       hits->clear();
@@ -175,6 +200,12 @@ bool make_basis(const Camera& cam, ViewBasis* out) {
 }
 
 bool intersect(const ObjectDesc& obj, const Vec3& eye, const Vec3& d, double* t0, double* t1) {
+  if (obj.shape == Shape::Mesh) {
+    if (!obj.mesh) return false;
+    const PlacedMesh placed(obj, eye, detail::mesh_bvh(obj.mesh));
+    std::uint64_t tests = 0;
+    return placed.hit(d, -kInf, kInf, false, t0, &tests) && placed.hit(d, -kInf, kInf, true, t1, &tests);
+  }
   if (obj.shape == Shape::Sphere) {
     // Closest approach first (stable for grazing rays), then the chord.
     const double a = glm::dot(d, d);
@@ -214,39 +245,25 @@ bool intersect(const ObjectDesc& obj, const Vec3& eye, const Vec3& d, double* t0
 
 namespace {
 
-/// A node of the hierarchy: its box; a leaf holds `count` objects from
-/// `first` (in Bvh::objects order), an inner node (count 0) its two children
-/// at `first` and `first + 1`.
-struct Node {
-  double lo[3];
-  double hi[3];
-  std::uint32_t first = 0;
-  std::uint32_t count = 0;
-};
-
-/// An object under construction: its leaf box, the box's centre, its index.
-struct Item {
-  double lo[3];
-  double hi[3];
-  double c[3];
-  std::uint32_t index;
-};
-
-constexpr int kBins = 16;
-constexpr std::uint32_t kLeafMax = 4;
-/// Below this depth the build splits by the surface-area heuristic; beyond
-/// it (degenerate distributions) at the median, which bounds the depth.
-constexpr int kSahDepth = 40;
-constexpr int kStackSize = 128;
-
 /// The leaf box of an object. A box's is its own bounds, with the very
 /// operations intersect() uses. A sphere's is its bounding box grown by a
 /// margin that covers intersect()'s rounding for an eye at distance
 /// `dist` from the centre: grazing hits may lie outside the exact ball by
 /// about sqrt(c * 2^-53 * r * (r + dist)) + c * 2^-53 * dist (c a small
 /// constant); the margin is over 20 times that, plus the rounding of the
-/// grown bounds themselves.
-void leaf_box(const ObjectDesc& obj, const Vec3& eye, double* lo, double* hi) {
+/// grown bounds themselves. A mesh's is the box of its placed model box,
+/// grown (PlacedMesh::world_box, which says by how much), or an empty box
+/// (lo > hi) for a mesh object without triangles (never hit).
+void leaf_box(const ObjectDesc& obj, const PlacedMesh* mesh, const Vec3& eye, double* lo, double* hi) {
+  if (obj.shape == Shape::Mesh) {
+    Vec3 l(kInf), h(-kInf);
+    if (mesh) mesh->world_box(&l, &h);
+    for (int i = 0; i < 3; ++i) {
+      lo[i] = l[i];
+      hi[i] = h[i];
+    }
+    return;
+  }
   if (obj.shape == Shape::Box) {
     for (int i = 0; i < 3; ++i) {
       lo[i] = obj.center[i] - obj.half_extent[i];
@@ -296,43 +313,33 @@ bool outside_frustum(const ViewBasis& b, const Vec3& lo, const Vec3& hi) {
   return false;
 }
 
-double half_area(const double* lo, const double* hi) {
-  const double x = hi[0] - lo[0];
-  const double y = hi[1] - lo[1];
-  const double z = hi[2] - lo[2];
-  return x * y + y * z + z * x;
-}
-
-void grow(double* lo, double* hi, const double* blo, const double* bhi) {
-  for (int i = 0; i < 3; ++i) {
-    lo[i] = std::min(lo[i], blo[i]);
-    hi[i] = std::max(hi[i], bhi[i]);
-  }
-}
-
 /// The hierarchy over the objects that may be hit under one camera.
 class Bvh {
  public:
-  Bvh(const std::vector<ObjectDesc>& objects, const ViewBasis& basis) {
-    std::vector<Item> items;
+  Bvh(const std::vector<ObjectDesc>& objects, const ViewBasis& basis, MeshSet* meshes) {
+    std::vector<BvhItem> items;
     items.reserve(objects.size());
     for (std::size_t i = 0; i < objects.size(); ++i) {
-      Item it;
-      leaf_box(objects[i], basis.eye, it.lo, it.hi);
-      if (outside_frustum(basis, Vec3(it.lo[0], it.lo[1], it.lo[2]), Vec3(it.hi[0], it.hi[1], it.hi[2]))) continue;
+      BvhItem it;
+      // A mesh's box comes from its hierarchy's root (no pass over its
+      // vertices): the hierarchy is built on the mesh's first call, kept.
+      leaf_box(objects[i], meshes->get(i), basis.eye, it.lo, it.hi);
+      if (!(it.lo[0] <= it.hi[0]) ||
+          outside_frustum(basis, Vec3(it.lo[0], it.lo[1], it.lo[2]), Vec3(it.hi[0], it.hi[1], it.hi[2])))
+        continue;
       for (int a = 0; a < 3; ++a) it.c[a] = 0.5 * it.lo[a] + 0.5 * it.hi[a];
       it.index = static_cast<std::uint32_t>(i);
       items.push_back(it);
     }
     if (items.empty()) return;
-    nodes_.reserve(2 * items.size());
-    nodes_.emplace_back();
-    build(items, 0, 0, static_cast<std::uint32_t>(items.size()), 0);
+    detail::build_bvh(items, &nodes_);
     objects_.reserve(items.size());
     index_.reserve(items.size());
-    for (const Item& it : items) {
+    meshes_.reserve(items.size());
+    for (const BvhItem& it : items) {
       objects_.push_back(objects[it.index]);
       index_.push_back(it.index);
+      meshes_.push_back(meshes->get(it.index));
     }
   }
 
@@ -341,8 +348,8 @@ class Bvh {
   const std::vector<std::uint32_t>& index() const { return index_; }
 
   /// The first hits of the ray eye + t*d (positions in objects()), like
-  /// cast() over every object.
-  void cast(const ViewBasis& b, const Vec3& d, std::vector<std::uint32_t>* hits) const {
+  /// cast() over every object; adds the ray–triangle tests to `*tests`.
+  void cast(const ViewBasis& b, const Vec3& d, std::vector<std::uint32_t>* hits, std::uint64_t* tests) const {
     hits->clear();
     if (nodes_.empty()) return;
     const bool axis_zero[3] = {d.x == 0.0, d.y == 0.0, d.z == 0.0};
@@ -350,7 +357,7 @@ class Bvh {
       std::uint32_t node;
       double t;
     };
-    std::array<Entry, kStackSize> stack;
+    std::array<Entry, detail::kBvhStackSize> stack;
     int top = 0;
     double best = kInf;
     double t_root = 0.0;
@@ -360,15 +367,11 @@ class Bvh {
       const Entry e = stack[--top];
       // Strictly beyond: an object entered at exactly `best` ties.
       if (e.t > best) continue;
-      const Node& n = nodes_[e.node];
+      const BvhNode& n = nodes_[e.node];
       if (n.count > 0) {
         for (std::uint32_t k = n.first; k < n.first + n.count; ++k) {
-          double t0 = 0.0;
-          double t1 = 0.0;
-          if (!intersect(objects_[k], b.eye, d, &t0, &t1)) continue;
-          const double entry = std::max(t0, b.near);
-          const double exit = std::min(t1, b.far);
-          if (!(entry <= exit)) continue;
+          double entry = 0.0;
+          if (!clipped_entry(objects_[k], meshes_[k], b, d, &entry, tests)) continue;
           if (entry < best) {
             best = entry;
             hits->clear();
@@ -404,7 +407,7 @@ class Bvh {
   /// The node's box met by the ray within [near, far], and its entry clipped
   /// to near; the operations of intersect() for a box, so that the interval
   /// contains that of every box object inside.
-  static bool enter(const Node& n, const ViewBasis& b, const Vec3& d, const bool* axis_zero, double* t) {
+  static bool enter(const BvhNode& n, const ViewBasis& b, const Vec3& d, const bool* axis_zero, double* t) {
     double lo_t = -kInf;
     double hi_t = kInf;
     for (int i = 0; i < 3; ++i) {
@@ -424,105 +427,10 @@ class Bvh {
     return true;
   }
 
-  /// Builds node `at` over items [begin, end).
-  void build(std::vector<Item>& items, std::uint32_t at, std::uint32_t begin, std::uint32_t end, int depth) {
-    double lo[3] = {kInf, kInf, kInf};
-    double hi[3] = {-kInf, -kInf, -kInf};
-    double clo[3] = {kInf, kInf, kInf};
-    double chi[3] = {-kInf, -kInf, -kInf};
-    for (std::uint32_t k = begin; k < end; ++k) {
-      grow(lo, hi, items[k].lo, items[k].hi);
-      grow(clo, chi, items[k].c, items[k].c);
-    }
-    Node& node = nodes_[at];
-    std::copy(lo, lo + 3, node.lo);
-    std::copy(hi, hi + 3, node.hi);
-    const std::uint32_t count = end - begin;
-    int axis = 0;
-    for (int a = 1; a < 3; ++a)
-      if (chi[a] - clo[a] > chi[axis] - clo[axis]) axis = a;
-    const double extent = chi[axis] - clo[axis];
-    if (count <= 1 || (count <= kLeafMax && !(extent > 0.0))) {
-      node.first = begin;
-      node.count = count;
-      return;
-    }
-    std::uint32_t mid = begin + count / 2;
-    bool split = true;
-    if (!(extent > 0.0) || depth >= kSahDepth) {
-      // Identical centres, or too deep: halves by centre.
-      std::nth_element(items.begin() + begin, items.begin() + mid, items.begin() + end,
-                       [axis](const Item& a, const Item& b) { return a.c[axis] < b.c[axis]; });
-    } else {
-      struct Bin {
-        double lo[3] = {kInf, kInf, kInf};
-        double hi[3] = {-kInf, -kInf, -kInf};
-        std::uint32_t n = 0;
-      };
-      std::array<Bin, kBins> bins;
-      const double scale = kBins / extent;
-      auto bin_of = [&](const Item& it) {
-        return std::clamp(static_cast<int>((it.c[axis] - clo[axis]) * scale), 0, kBins - 1);
-      };
-      for (std::uint32_t k = begin; k < end; ++k) {
-        Bin& bn = bins[static_cast<std::size_t>(bin_of(items[k]))];
-        grow(bn.lo, bn.hi, items[k].lo, items[k].hi);
-        ++bn.n;
-      }
-      // Cost of splitting after bin s: area-weighted counts of both sides.
-      std::array<double, kBins> right_cost{};
-      {
-        double rlo[3] = {kInf, kInf, kInf};
-        double rhi[3] = {-kInf, -kInf, -kInf};
-        std::uint32_t rn = 0;
-        for (int s = kBins - 1; s > 0; --s) {
-          grow(rlo, rhi, bins[static_cast<std::size_t>(s)].lo, bins[static_cast<std::size_t>(s)].hi);
-          rn += bins[static_cast<std::size_t>(s)].n;
-          right_cost[static_cast<std::size_t>(s)] = rn > 0 ? rn * half_area(rlo, rhi) : 0.0;
-        }
-      }
-      double llo[3] = {kInf, kInf, kInf};
-      double lhi[3] = {-kInf, -kInf, -kInf};
-      std::uint32_t ln = 0;
-      double best_cost = kInf;
-      int best_split = -1;
-      for (int s = 1; s < kBins; ++s) {
-        grow(llo, lhi, bins[static_cast<std::size_t>(s - 1)].lo, bins[static_cast<std::size_t>(s - 1)].hi);
-        ln += bins[static_cast<std::size_t>(s - 1)].n;
-        if (ln == 0 || ln == count) continue;
-        const double cost = ln * half_area(llo, lhi) + right_cost[static_cast<std::size_t>(s)];
-        if (cost < best_cost) {
-          best_cost = cost;
-          best_split = s;
-        }
-      }
-      if (count <= kLeafMax && !(best_cost < count * half_area(lo, hi))) split = false;
-      if (split && best_split > 0) {
-        const auto it = std::partition(items.begin() + begin, items.begin() + end,
-                                       [&](const Item& x) { return bin_of(x) < best_split; });
-        mid = static_cast<std::uint32_t>(it - items.begin());
-      } else if (split) {
-        std::nth_element(items.begin() + begin, items.begin() + mid, items.begin() + end,
-                         [axis](const Item& a, const Item& b) { return a.c[axis] < b.c[axis]; });
-      }
-    }
-    if (!split) {
-      node.first = begin;
-      node.count = count;
-      return;
-    }
-    const auto children = static_cast<std::uint32_t>(nodes_.size());
-    nodes_[at].first = children;
-    nodes_[at].count = 0;
-    nodes_.emplace_back();
-    nodes_.emplace_back();
-    build(items, children, begin, mid, depth + 1);
-    build(items, children + 1, mid, end, depth + 1);
-  }
-
-  std::vector<Node> nodes_;
+  std::vector<BvhNode> nodes_;
   std::vector<ObjectDesc> objects_;
   std::vector<std::uint32_t> index_;
+  std::vector<const PlacedMesh*> meshes_;  ///< Per object: its triangles placed, or null.
 };
 
 /// The image points of `sampling`: the cells row by row, one ray each (at
@@ -602,9 +510,9 @@ class NearPixel {
  public:
   NearPixel(const std::vector<ObjectDesc>& objects, const ViewBasis& basis, int width, int height)
       : objects_(objects), basis_(basis), width_(width), height_(height),
-        rx_(kPixelCone * 2.0 / width), ry_(kPixelCone * 2.0 / height) {
+        rx_(kPixelCone * 2.0 / width), ry_(kPixelCone * 2.0 / height), meshes_(objects, basis.eye, false) {
     rects_.reserve(objects.size());
-    for (const ObjectDesc& o : objects) rects_.push_back(project_box(o));
+    for (std::size_t k = 0; k < objects.size(); ++k) rects_.push_back(project_box(k));
   }
   /// Takes objects[target] as the object to test from now on: its pixels
   /// and the objects that may hide it.
@@ -621,7 +529,7 @@ class NearPixel {
     for (std::size_t k = 0; k < objects_.size(); ++k) {
       const Rect& r = rects_[k];
       if (k == target || (r.x0 <= window.x1 && r.x1 >= window.x0 && r.y0 <= window.y1 && r.y1 >= window.y0))
-        cands_.push_back({k, -kInf});
+        cands_.push_back({k, -kInf, meshes_.get(k)});
     }
     // Pixel i's centre is at x = -1 + (2i+1)/width; a pixel more each side.
     auto pixel = [](double x, int n) { return std::clamp((x + 1.0) * 0.5 * n - 0.5, -2.0, n + 1.0); };
@@ -643,11 +551,9 @@ class NearPixel {
     const double y = -1.0 + 2.0 * (j + 0.5) / height_;
     for (const auto& c : kConeDir) {
       const Vec3 d = basis_.ray_dir(x + rx_ * c[0], y + ry_ * c[1]);
-      double t0 = 0.0;
-      double t1 = 0.0;
-      if (!intersect(o, basis_.eye, d, &t0, &t1) || !(std::max(t0, basis_.near) <= std::min(t1, basis_.far)))
-        continue;
-      cast(objects_, cands_, basis_, d, &hits_);
+      double entry = 0.0;
+      if (!clipped_entry(o, meshes_.get(target_), basis_, d, &entry, &tests_)) continue;
+      cast(objects_, cands_, basis_, d, &hits_, &tests_);
       if (std::find(hits_.begin(), hits_.end(), target_) != hits_.end()) return true;
     }
     return false;
@@ -658,15 +564,23 @@ class NearPixel {
   struct Rect {
     double x0, x1, y0, y1;
   };
-  /// Where the object's bounding box projects; the whole plane when a
-  /// corner is not in front of the eye (every ray that meets the object
-  /// meets the box in front of the eye, so passes through the rectangle).
-  Rect project_box(const ObjectDesc& obj) const {
+  /// Where the bounding box of objects[k] projects (a mesh's: the box of
+  /// its hits, PlacedMesh::world_box); the whole plane when a corner is not
+  /// in front of the eye (every ray that meets the object meets the box in
+  /// front of the eye, so passes through the rectangle); nothing for a mesh
+  /// object that cannot be hit.
+  Rect project_box(std::size_t k) {
     const Rect whole{-kInf, kInf, -kInf, kInf};
+    Rect r{kInf, -kInf, kInf, -kInf};
     Vec3 lo;
     Vec3 hi;
-    object_aabb(obj, &lo, &hi);
-    Rect r{kInf, -kInf, kInf, -kInf};
+    if (objects_[k].shape == Shape::Mesh) {
+      const PlacedMesh* mesh = meshes_.get(k);
+      if (!mesh) return r;
+      mesh->world_box(&lo, &hi);
+    } else {
+      object_bounds(objects_[k], &lo, &hi);
+    }
     for (int c = 0; c < 8; ++c) {
       const Vec3 v = Vec3(c & 1 ? hi.x : lo.x, c & 2 ? hi.y : lo.y, c & 4 ? hi.z : lo.z) - basis_.eye;
       const double z = glm::dot(v, basis_.f);
@@ -685,10 +599,12 @@ class NearPixel {
   int height_;
   double rx_;
   double ry_;
+  MeshSet meshes_;
   std::vector<Rect> rects_;
   std::size_t target_ = 0;
   std::vector<Candidate> cands_;
   std::vector<std::size_t> hits_;
+  std::uint64_t tests_ = 0;  ///< Ray–triangle tests (not reported).
   int i0_ = 0, i1_ = 0, j0_ = 0, j1_ = 0;
 };
 
@@ -711,10 +627,19 @@ std::vector<ObjectId> visible_objects(const std::vector<ObjectDesc>& objects, co
   const auto t_build = std::chrono::steady_clock::now();
   const Samples samples(sampling);
   st.rays = samples.count();
+  MeshSet meshes(objects, basis.eye, options.brute_force);
   std::optional<Bvh> bvh;
-  if (!options.brute_force) bvh.emplace(objects, basis);
+  // Brute force: every object (a mesh with every triangle), in order.
+  std::vector<Candidate> all;
+  if (options.brute_force) {
+    all.reserve(objects.size());
+    for (std::size_t i = 0; i < objects.size(); ++i) all.push_back({i, -kInf, meshes.get(i)});
+  } else {
+    bvh.emplace(objects, basis, &meshes);
+  }
   const std::size_t candidates = bvh ? bvh->objects().size() : objects.size();
   st.in_frustum = candidates;
+  st.meshes_built = meshes.built();
   st.build_ms = ms_since(t_build);
 
   // Rows of samples to threads; each marks what it hits in its own flags.
@@ -725,37 +650,38 @@ std::vector<ObjectId> visible_objects(const std::vector<ObjectDesc>& objects, co
   threads = std::clamp(threads, 1, std::max(1, samples.rows()));
   st.threads = threads;
   const auto t_cast = std::chrono::steady_clock::now();
-  std::vector<std::vector<char>> seen(static_cast<std::size_t>(threads), std::vector<char>(candidates, 0));
+  const auto nthreads = static_cast<std::size_t>(threads);
+  std::vector<std::vector<char>> seen(nthreads, std::vector<char>(candidates, 0));
+  std::vector<std::uint64_t> tests(nthreads, 0);
   std::atomic<int> next_row{0};
-  auto work = [&](std::vector<char>* flags) {
+  auto work = [&](std::size_t k) {
+    std::vector<char>& flags = seen[k];
+    std::uint64_t count = 0;
     std::vector<Ray> rays;
     std::vector<std::uint32_t> hits;
-    std::vector<Candidate> all;
     std::vector<std::size_t> brute_hits;
-    if (!bvh) {
-      all.reserve(objects.size());
-      for (std::size_t i = 0; i < objects.size(); ++i) all.push_back({i, -kInf});
-    }
     for (int row = next_row++; row < samples.rows(); row = next_row++) {
       samples.row(row, &rays);
       for (const Ray& r : rays) {
         const Vec3 d = basis.ray_dir(r.x, r.y);
         if (bvh) {
-          bvh->cast(basis, d, &hits);
-          for (std::uint32_t h : hits) (*flags)[h] = 1;
+          bvh->cast(basis, d, &hits, &count);
+          for (std::uint32_t h : hits) flags[h] = 1;
         } else {
-          cast(objects, all, basis, d, &brute_hits);
-          for (std::size_t h : brute_hits) (*flags)[h] = 1;
+          cast(objects, all, basis, d, &brute_hits, &count);
+          for (std::size_t h : brute_hits) flags[h] = 1;
         }
       }
     }
+    tests[k] = count;
   };
   if (candidates > 0) {
     std::vector<std::thread> pool;
-    for (int k = 1; k < threads; ++k) pool.emplace_back(work, &seen[static_cast<std::size_t>(k)]);
-    work(&seen[0]);
+    for (std::size_t k = 1; k < nthreads; ++k) pool.emplace_back(work, k);
+    work(0);
     for (std::thread& t : pool) t.join();
   }
+  for (std::uint64_t n : tests) st.triangle_tests += n;
   std::vector<ObjectId> ids;
   for (std::size_t i = 0; i < candidates; ++i) {
     bool hit = false;
@@ -772,11 +698,13 @@ std::vector<ObjectId> first_hit(const std::vector<ObjectDesc>& objects, const Ca
                                 double y) {
   ViewBasis basis;
   if (!make_basis(cam, &basis)) return {};
+  MeshSet meshes(objects, basis.eye, false);
   std::vector<Candidate> cands;
   cands.reserve(objects.size());
-  for (std::size_t i = 0; i < objects.size(); ++i) cands.push_back({i, -kInf});
+  for (std::size_t i = 0; i < objects.size(); ++i) cands.push_back({i, -kInf, meshes.get(i)});
   std::vector<std::size_t> hits;
-  cast(objects, cands, basis, basis.ray_dir(x, y), &hits);
+  std::uint64_t tests = 0;
+  cast(objects, cands, basis, basis.ray_dir(x, y), &hits, &tests);
   std::vector<ObjectId> ids;
   for (std::size_t h : hits) ids.push_back(objects[h].id);
   std::sort(ids.begin(), ids.end());
@@ -841,15 +769,26 @@ std::size_t voxels_in_view(const std::vector<ObjectDesc>& objects, const Camera&
   const std::vector<ObjectId> in = frustum_objects(objects, cam);
   // Nearest first, each with the least depth its box can have, so that a
   // ray stops looking once nothing left can come nearer than its hit.
+  MeshSet meshes(objects, basis.eye, false);
   std::vector<Candidate> cands;
   for (std::size_t i = 0; i < objects.size(); ++i) {
     if (!std::binary_search(in.begin(), in.end(), objects[i].id)) continue;
     const ObjectDesc& o = objects[i];
-    const Vec3 h = o.shape == Shape::Sphere ? Vec3(o.radius) : o.half_extent;
+    Vec3 c = o.center;
+    Vec3 h = o.shape == Shape::Sphere ? Vec3(o.radius) : o.half_extent;
+    const PlacedMesh* mesh = meshes.get(i);
+    if (o.shape == Shape::Mesh) {
+      // The box of every hit the caster computes on it.
+      if (!mesh) continue;
+      Vec3 lo, hi;
+      mesh->world_box(&lo, &hi);
+      c = 0.5 * lo + 0.5 * hi;
+      h = hi - c;
+    }
     const Vec3& f = basis.f;
-    const double zmin = glm::dot(f, o.center - basis.eye) -
+    const double zmin = glm::dot(f, c - basis.eye) -
                         (std::abs(f.x) * h.x + std::abs(f.y) * h.y + std::abs(f.z) * h.z);
-    cands.push_back({i, zmin});
+    cands.push_back({i, zmin, mesh});
   }
   std::sort(cands.begin(), cands.end(), [](const Candidate& a, const Candidate& b) { return a.zmin < b.zmin; });
   const Vec3 vs = (bmax - bmin) / Vec3(res);
@@ -858,16 +797,17 @@ std::size_t voxels_in_view(const std::vector<ObjectDesc>& objects, const Camera&
                          0);
   std::size_t count = 0;
   std::vector<std::size_t> hits;
+  std::uint64_t tests = 0;
   for (int row = 0; row < sampling.rows; ++row)
     for (int col = 0; col < sampling.cols; ++col) {
       const double x = -1.0 + (2.0 * col + 1.0) / sampling.cols;
       const double y = -1.0 + (2.0 * row + 1.0) / sampling.rows;
       const Vec3 d = basis.ray_dir(x, y);
-      cast(objects, cands, basis, d, &hits);
+      cast(objects, cands, basis, d, &hits, &tests);
       double t_end = basis.far;
       for (std::size_t h : hits) {
-        double t0 = 0.0, t1 = 0.0;
-        if (intersect(objects[h], basis.eye, d, &t0, &t1)) t_end = std::min(t_end, std::max(t0, basis.near));
+        double entry = 0.0;
+        if (clipped_entry(objects[h], meshes.get(h), basis, d, &entry, &tests)) t_end = std::min(t_end, entry);
       }
       // The segment [near, t_end] in grid units, clipped to the grid box.
       const Vec3 o = (basis.eye - bmin) / vs;
@@ -931,7 +871,8 @@ std::vector<ObjectId> frustum_objects(const std::vector<ObjectDesc>& objects, co
   for (const ObjectDesc& obj : objects) {
     Vec3 lo;
     Vec3 hi;
-    object_aabb(obj, &lo, &hi);
+    object_bounds(obj, &lo, &hi);
+    if (!(lo.x <= hi.x)) continue;  // A mesh object without triangles.
     bool outside = false;
     for (const Plane& p : planes) {
       double mn = 0.0;

@@ -144,7 +144,7 @@ bool Renderer::Impl::ensure_model(std::string* note, std::string* error) {
   if (!begin(cam, kW, kH, &b, error)) return false;
   const auto start = Clock::now();
   constexpr int kTiny = 20000;
-  instances.clear();
+  clear_instances();
   for (int i = 0; i < kTiny; ++i) instances.push_back(instance(b, Vec3(0.0, 0.0, -10.0), Vec3(0.02), true, 1));
   const std::size_t full = instances.size();
   instances.push_back(instance(b, Vec3(0.0, 0.0, -3.0), Vec3(10.0, 10.0, 1.0), true, 1));

@@ -86,7 +86,7 @@ bool pvs_instances(Renderer::Impl& m, const Basis& b, const std::vector<ObjectDe
   std::unordered_map<ObjectId, std::size_t> at;
   at.reserve(objects.size());
   for (std::size_t i = 0; i < objects.size(); ++i) at.emplace(objects[i].id, i);
-  m.instances.clear();
+  m.clear_instances();
   m.drawn_ids.clear();
   lo->clear();
   hi->clear();
@@ -96,14 +96,15 @@ bool pvs_instances(Renderer::Impl& m, const Basis& b, const std::vector<ObjectDe
       *error = "pvs: id " + std::to_string(id) + " is not an object of the scene";
       return false;
     }
-    const ObjectDesc& o = objects[it->second];
-    if (!may_meet_frustum(b, o)) continue;
-    const Vec3 half = o.shape == Shape::Sphere ? Vec3(o.radius) : o.half_extent;
+    // A mesh's box is object_bounds, the box of its placed vertices: the
+    // queries of boxes standing for it (query_box, grown far beyond the
+    // rounding of its vertices to float) and the screen rectangles built on
+    // it hold every pixel its triangles cover, so they stay conservative.
+    glm::dvec3 l, h;
+    if (!m.add_object(b, objects[it->second], static_cast<std::uint32_t>(m.drawn_ids.size() + 1), &l, &h)) continue;
     m.drawn_ids.push_back(id);
-    m.instances.push_back(Renderer::Impl::instance(b, o.center, half, o.shape == Shape::Box,
-                                                   static_cast<std::uint32_t>(m.drawn_ids.size())));
-    lo->push_back(o.center - half);
-    hi->push_back(o.center + half);
+    lo->push_back(l);
+    hi->push_back(h);
   }
   return true;
 }
@@ -313,7 +314,7 @@ bool lazy_grid(Renderer::Impl& m, const Basis& b, int width, int height, const s
       continue;
     }
     const auto t = Clock::now();
-    glDrawElementsInstancedBaseInstance(GL_TRIANGLES, detail::kBoxIndices, GL_UNSIGNED_BYTE, nullptr, 1, e.object);
+    m.draw_instance(e.object);
     ++stats->draw_calls;
     stats->draw_ms += ms_since(t);
     out->push_back(m.drawn_ids[e.object]);

@@ -20,8 +20,8 @@
 //    objects, once drawn, may hide it.
 //
 // Where the paper renders a visible leaf's objects, this level queries each
-// of them (an object here is one box or ball: a query costs no more than
-// drawing it, and keeping it would cost tightness). What is tested against is
+// of them (an object here is one box, ball or mesh: a query costs no more
+// than drawing it, and keeping it would cost tightness). What is tested against is
 // only what was drawn before, so a dropped object is hidden by drawn objects
 // of the PVS: conservative at pixel level, less tight than `queries`.
 #include <algorithm>
@@ -36,6 +36,7 @@
 
 #include "refine_common.h"
 #include "renderer_impl.h"
+#include "voxvis/mesh.h"
 
 namespace voxvis::render::detail {
 namespace {
@@ -166,9 +167,11 @@ bool refine_ternary(Renderer::Impl& m, const Basis& b, int width, int height, co
   // the view moves.
   glm::dvec3 region_lo(std::numeric_limits<double>::infinity()), region_hi = -region_lo;
   for (const ObjectDesc& o : objects) {
-    const Vec3 half = o.shape == Shape::Sphere ? Vec3(o.radius) : o.half_extent;
-    region_lo = glm::min(region_lo, o.center - half);
-    region_hi = glm::max(region_hi, o.center + half);
+    if (o.shape == Shape::Mesh && !o.mesh) continue;
+    Vec3 l, h;
+    object_bounds(o, &l, &h);  // A mesh's: the box of its placed vertices.
+    region_lo = glm::min(region_lo, l);
+    region_hi = glm::max(region_hi, h);
   }
   TernaryTree& tree = m.refine.ternary;
   Frame f;
@@ -217,8 +220,7 @@ bool refine_ternary(Renderer::Impl& m, const Basis& b, int width, int height, co
   };
   auto draw_in_query = [&](std::size_t q, std::size_t instance) {
     glBeginQuery(GL_SAMPLES_PASSED, m.queries[q]);
-    glDrawElementsInstancedBaseInstance(GL_TRIANGLES, detail::kBoxIndices, GL_UNSIGNED_BYTE, nullptr, 1,
-                                        static_cast<GLuint>(instance));
+    m.draw_instance(instance);
     glEndQuery(GL_SAMPLES_PASSED);
     ++stats->draw_calls;
     ++stats->queries;
@@ -297,7 +299,7 @@ bool refine_ternary(Renderer::Impl& m, const Basis& b, int width, int height, co
     glDepthMask(GL_TRUE);
     glColorMaski(0, GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
     glDepthFunc(GL_LESS);
-    glDrawElementsInstancedBaseInstance(GL_TRIANGLES, detail::kBoxIndices, GL_UNSIGNED_BYTE, nullptr, 1, p.e.object);
+    m.draw_instance(p.e.object);
     m.begin_probes(0);
     ++stats->draw_calls;
     stats->draw_ms += ms_since(t);

@@ -1,6 +1,7 @@
-// renderer.cpp — Renderer: the exact-object pass (shaders.h) into an id and
-// depth framebuffer, read back once (Method::Ids) or probed with one
-// occlusion query per candidate (Method::Queries).
+// renderer.cpp — Renderer: the exact-object pass (shaders.h; meshes in
+// mesh_pass.cpp) into an id and depth framebuffer, read back once
+// (Method::Ids) or probed with one occlusion query per candidate
+// (Method::Queries).
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -18,6 +19,7 @@
 
 #include "renderer_impl.h"
 #include "shaders.h"
+#include "voxvis/mesh.h"
 #include "voxvis/render.h"
 
 namespace voxvis::render {
@@ -68,8 +70,31 @@ constexpr std::uint8_t kTriangles[detail::kBoxIndices] = {
     1, 3, 5, 3, 7, 5,  // x = +1
 };
 
-
 }  // namespace
+
+GLuint detail::link_program(const char* vertex, const char* fragment, std::string* error) {
+  const GLuint vs = compile(GL_VERTEX_SHADER, vertex, error);
+  if (vs == 0) return 0;
+  const GLuint fs = compile(GL_FRAGMENT_SHADER, fragment, error);
+  if (fs == 0) {
+    glDeleteShader(vs);
+    return 0;
+  }
+  const GLuint program = glCreateProgram();
+  glAttachShader(program, vs);
+  glAttachShader(program, fs);
+  glLinkProgram(program);
+  glDeleteShader(vs);
+  glDeleteShader(fs);
+  GLint ok = 0;
+  glGetProgramiv(program, GL_LINK_STATUS, &ok);
+  if (!ok) {
+    *error = "shader link failed: " + info_log(program, true);
+    glDeleteProgram(program);
+    return 0;
+  }
+  return program;
+}
 
 bool parse_platform(const std::string& text, Platform* out, std::string* message) {
   if (text == "auto") *out = Platform::Auto;
@@ -144,25 +169,8 @@ bool Renderer::Impl::setup(std::string* error) {
   glGetIntegerv(GL_MAX_VIEWPORT_DIMS, dims);
   info.max_size = std::min({max_rb, dims[0], dims[1]});
 
-  const GLuint vs = compile(GL_VERTEX_SHADER, detail::kVertexShader, error);
-  if (vs == 0) return false;
-  const GLuint fs = compile(GL_FRAGMENT_SHADER, detail::kFragmentShader, error);
-  if (fs == 0) {
-    glDeleteShader(vs);
-    return false;
-  }
-  program = glCreateProgram();
-  glAttachShader(program, vs);
-  glAttachShader(program, fs);
-  glLinkProgram(program);
-  glDeleteShader(vs);
-  glDeleteShader(fs);
-  GLint ok = 0;
-  glGetProgramiv(program, GL_LINK_STATUS, &ok);
-  if (!ok) {
-    *error = "shader link failed: " + info_log(program, true);
-    return false;
-  }
+  program = detail::link_program(detail::kVertexShader, detail::kFragmentShader, error);
+  if (program == 0) return false;
   u_right = glGetUniformLocation(program, "u_right");
   u_up = glGetUniformLocation(program, "u_up");
   u_f = glGetUniformLocation(program, "u_f");
@@ -206,6 +214,8 @@ bool Renderer::Impl::setup(std::string* error) {
   // object itself); the rays behind the eye are cut by the side planes.
   glEnable(GL_DEPTH_CLAMP);
   glEnable(GL_DEPTH_TEST);
+  if (!setup_meshes(error)) return false;
+  glBindVertexArray(vao);
   return gl_ok("set-up", error);
 }
 
@@ -267,12 +277,49 @@ Instance Renderer::Impl::instance(const Basis& b, const Vec3& centre, const Vec3
     in.centre[a] = static_cast<float>(c[a]);
     in.half[a] = static_cast<float>(half[a]);
   }
-  in.kind = box ? 1.0f : 0.0f;
+  in.kind = box ? detail::kBox : detail::kBall;
   in.index = index;
   return in;
 }
 
+void Renderer::Impl::clear_instances() {
+  instances.clear();
+  added_instance.clear();
+  added_mesh.clear();
+  added.clear();
+  mesh_slot.clear();
+  mesh_groups.clear();
+}
+
+bool Renderer::Impl::add_object(const Basis& b, const ObjectDesc& o, std::uint32_t index, glm::dvec3* lo,
+                                glm::dvec3* hi) {
+  glm::dvec3 l, h;
+  if (o.shape == Shape::Mesh) {
+    if (!o.mesh || o.mesh->triangles.empty()) return false;
+    object_bounds(o, &l, &h);
+    const glm::dvec3 c = 0.5 * (l + h);
+    if (!detail::may_meet_frustum(b, c, h - c, false)) return false;
+    add_mesh(b, o, index, l, h);
+  } else {
+    if (!detail::may_meet_frustum(b, o)) return false;
+    const Vec3 half = o.shape == Shape::Sphere ? Vec3(o.radius) : o.half_extent;
+    instances.push_back(instance(b, o.center, half, o.shape == Shape::Box, index));
+    l = o.center - half;
+    h = o.center + half;
+  }
+  if (lo) *lo = l;
+  if (hi) *hi = h;
+  return true;
+}
+
+void Renderer::Impl::draw_instance(std::size_t k) {
+  if (instances[k].kind > 1.5f) return draw_mesh(mesh_slot[k]);
+  glDrawElementsInstancedBaseInstance(GL_TRIANGLES, detail::kBoxIndices, GL_UNSIGNED_BYTE, nullptr, 1,
+                                      static_cast<GLuint>(k));
+}
+
 void Renderer::Impl::upload() {
+  upload_meshes();
   glBindBuffer(GL_ARRAY_BUFFER, instance_vbo);
   if (instances.size() > instance_capacity) {
     instance_capacity = std::max(instances.size(), 2 * instance_capacity);
@@ -295,6 +342,7 @@ void Renderer::Impl::depth_pass(const Basis& b, int w, int h, std::ptrdiff_t cou
   glUniform2f(u_tan, static_cast<float>(b.tanx), static_cast<float>(b.tany));
   glUniform2f(u_size, static_cast<float>(w), static_cast<float>(h));
   glUniform2f(u_range, static_cast<float>(b.near), static_cast<float>(b.far));
+  mesh_uniforms(b);
   const GLuint zero[4] = {0, 0, 0, 0};
   glClearBufferuiv(GL_COLOR, 0, zero);
   const GLfloat far_depth = 1.0f;
@@ -304,6 +352,7 @@ void Renderer::Impl::depth_pass(const Basis& b, int w, int h, std::ptrdiff_t cou
   glDepthFunc(GL_LESS);
   const auto n = static_cast<GLsizei>(count < 0 ? static_cast<std::ptrdiff_t>(instances.size()) : count);
   if (n > 0) glDrawElementsInstanced(GL_TRIANGLES, detail::kBoxIndices, GL_UNSIGNED_BYTE, nullptr, n);
+  draw_meshes(static_cast<std::size_t>(n));
 }
 
 void Renderer::Impl::begin_probes(std::size_t n) {
@@ -319,7 +368,7 @@ void Renderer::Impl::begin_probes(std::size_t n) {
 
 void Renderer::Impl::probe(GLenum target, std::size_t q, std::size_t k) {
   glBeginQuery(target, queries[q]);
-  glDrawElementsInstancedBaseInstance(GL_TRIANGLES, detail::kBoxIndices, GL_UNSIGNED_BYTE, nullptr, 1, static_cast<GLuint>(k));
+  draw_instance(k);
   glEndQuery(target);
   if ((q + 1) % kFlushEvery == 0) glFlush();
 }
@@ -342,14 +391,10 @@ bool Renderer::visible(const std::vector<ObjectDesc>& objects, const Camera& cam
 
   // Instances: the objects the frustum may hold, in the order given.
   auto t0 = Clock::now();
-  m.instances.clear();
+  m.clear_instances();
   m.drawn_ids.clear();
-  for (const ObjectDesc& o : objects) {
-    if (!detail::may_meet_frustum(b, o)) continue;
-    m.drawn_ids.push_back(o.id);
-    m.instances.push_back(Impl::instance(b, o.center, o.shape == Shape::Sphere ? Vec3(o.radius) : o.half_extent,
-                                         o.shape == Shape::Box, static_cast<std::uint32_t>(m.drawn_ids.size())));
-  }
+  for (const ObjectDesc& o : objects)
+    if (m.add_object(b, o, static_cast<std::uint32_t>(m.drawn_ids.size() + 1))) m.drawn_ids.push_back(o.id);
   const auto n = static_cast<GLsizei>(m.instances.size());
   stats->in_frustum = static_cast<std::uint32_t>(n);
   m.upload();

@@ -1,6 +1,7 @@
 // renderer_impl.h — the renderer's internals shared by its passes:
-// renderer.cpp (context, framebuffer, the visible set) and refine.cpp (the
-// refinement levels of voxvis/refine.h).
+// renderer.cpp (context, framebuffer, the visible set), mesh_pass.cpp (the
+// triangles of mesh objects) and refine.cpp (the refinement levels of
+// voxvis/refine.h).
 #pragma once
 
 #include <array>
@@ -11,6 +12,7 @@
 #include <cstdio>
 #include <memory>
 #include <string>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -30,14 +32,47 @@ inline double ms_since(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
-/// One object as the vertex shader reads it (32 bytes).
+/// The kinds of Instance::kind.
+constexpr float kBall = 0.0f, kBox = 1.0f, kMesh = 2.0f;
+
+/// One object as the vertex shader reads it (32 bytes). A mesh's instance
+/// holds its world box and draws nothing in the ball-and-box pass; its
+/// triangles are drawn by the mesh pass (MeshInstance).
 struct Instance {
   float centre[3];
-  float kind;  // 0 ball, 1 box.
+  float kind;  // kBall, kBox or kMesh.
   float half[3];
   std::uint32_t index;  // Instance number + 1; 0 in the id buffer is "nothing".
 };
 static_assert(sizeof(Instance) == 32);
+
+/// A mesh's triangles on the GPU, made on the first frame that draws the
+/// mesh and kept while it lives (Renderer::Impl::gpu_mesh): its vertices as
+/// floats relative to the centre of its model box (a mesh far from its model
+/// origin keeps its precision), its indices, and a vertex array that reads
+/// them with the mesh instances.
+struct GpuMesh {
+  std::weak_ptr<const Mesh> mesh;
+  GLuint vao = 0, vbo = 0, ebo = 0;
+  GLsizei indices = 0;
+  glm::dvec3 centre{0.0};  ///< Centre of the model box, model units.
+};
+
+/// One mesh object as the mesh pass's vertex shader reads it (52 bytes).
+struct MeshInstance {
+  float offset[3];      ///< Where the model box's centre goes, relative to the eye, world units.
+  float axes[9];        ///< scale * rotation, column by column.
+  std::uint32_t index;  ///< Instance number + 1, as Instance::index.
+};
+static_assert(sizeof(MeshInstance) == 52);
+
+/// The instances of one mesh this frame: mesh instances [first, first +
+/// count), the greatest instance number among them `last`.
+struct MeshGroup {
+  const GpuMesh* mesh = nullptr;
+  std::uint32_t first = 0, count = 0;
+  std::size_t last = 0;
+};
 
 /// The camera's frame: f along the view, right and up across it, as the CPU
 /// ray caster builds it (voxvis/raycast.h).
@@ -87,12 +122,12 @@ inline bool make_basis(const Camera& cam, Basis* b, std::string* error) {
   return true;
 }
 
-/// Whether the object may meet the frustum: rejected only when it lies wholly
-/// on the outer side of one of the six planes (conservative; a sphere is
-/// tested as a ball, a box as a box).
-inline bool may_meet_frustum(const Basis& b, const ObjectDesc& o) {
-  const glm::dvec3 c = o.center - b.eye;
-  const glm::dvec3 h = o.shape == Shape::Sphere ? glm::dvec3(o.radius) : o.half_extent;
+/// Whether the ball (radius half.x) or the box (half extents `half`) about
+/// `centre` may meet the frustum: rejected only when it lies wholly on the
+/// outer side of one of the six planes (conservative).
+inline bool may_meet_frustum(const Basis& b, const glm::dvec3& centre, const glm::dvec3& half, bool ball) {
+  const glm::dvec3 c = centre - b.eye;
+  const glm::dvec3& h = half;
   // Planes as n . p <= k with p relative to the eye.
   const std::array<std::pair<glm::dvec3, double>, 6> planes = {{
       {b.right - b.tanx * b.f, 0.0},
@@ -103,8 +138,7 @@ inline bool may_meet_frustum(const Basis& b, const ObjectDesc& o) {
       {b.f, b.far},
   }};
   for (const auto& [n, k] : planes) {
-    const double reach = o.shape == Shape::Sphere ? o.radius * glm::length(n)
-                                                  : std::abs(n.x) * h.x + std::abs(n.y) * h.y + std::abs(n.z) * h.z;
+    const double reach = ball ? h.x * glm::length(n) : std::abs(n.x) * h.x + std::abs(n.y) * h.y + std::abs(n.z) * h.z;
     const double least = glm::dot(n, c) - reach;
     const double tol = 1e-9 * (glm::length(c) * glm::length(n) + reach + std::abs(k)) + 1e-300;
     if (least > k + tol) return false;
@@ -112,8 +146,19 @@ inline bool may_meet_frustum(const Basis& b, const ObjectDesc& o) {
   return true;
 }
 
+/// The same for a sphere (as a ball) or a box (a mesh: by its box,
+/// Renderer::Impl::add_object).
+inline bool may_meet_frustum(const Basis& b, const ObjectDesc& o) {
+  const bool ball = o.shape == Shape::Sphere;
+  return may_meet_frustum(b, o.center, ball ? glm::dvec3(o.radius) : o.half_extent, ball);
+}
+
+/// Compiles and links a program of the two shaders; 0 with `error` on failure.
+GLuint link_program(const char* vertex, const char* fragment, std::string* error);
+
 /// Indices of the unit cube's twelve triangles (renderer.cpp's kTriangles):
-/// every object and box is drawn as one instance of them.
+/// every ball, box and query box is drawn as one instance of them (a mesh's
+/// instance too, as nothing: its triangles are the mesh pass's).
 constexpr GLsizei kBoxIndices = 36;
 constexpr int kFlushEvery = 512;  // Queries between flushes (long unflushed batches misreport on llvmpipe).
 constexpr std::int64_t kMaxPixels = std::int64_t{1} << 26;  // 64 Mpixel: 512 MiB of id and depth.
@@ -133,6 +178,20 @@ struct Renderer::Impl {
   std::vector<GLuint> queries;
   std::vector<detail::Instance> instances;
   std::vector<ObjectId> drawn_ids;  // Instance number -> id.
+  // The mesh pass (mesh_pass.cpp).
+  GLuint mesh_program = 0, mesh_instance_vbo = 0;
+  GLint mu_right = -1, mu_up = -1, mu_f = -1, mu_tan = -1, mu_range = -1;
+  std::size_t mesh_instance_capacity = 0;
+  std::unordered_map<const Mesh*, detail::GpuMesh> gpu_meshes;  // By the mesh's address, while it lives.
+  /// This frame's mesh objects in the order added: their instance numbers,
+  /// meshes and instances; upload() groups them by mesh into mesh_instances.
+  std::vector<std::size_t> added_instance;
+  std::vector<const detail::GpuMesh*> added_mesh;
+  std::vector<detail::MeshInstance> added;
+  std::vector<detail::MeshInstance> mesh_instances;  // Uploaded, grouped by mesh.
+  std::vector<const detail::GpuMesh*> slot_mesh;     // Per mesh instance: its mesh.
+  std::vector<std::uint32_t> mesh_slot;              // Per instance of a mesh: its mesh instance.
+  std::vector<detail::MeshGroup> mesh_groups;
   std::vector<ObjectId> ids;        // Last id image.
   std::vector<std::uint32_t> raw;
   detail::RefineState refine;      // The refinement levels' state between frames.
@@ -150,18 +209,30 @@ struct Renderer::Impl {
       glDeleteBuffers(1, &instance_vbo);
       glDeleteVertexArrays(1, &vao);
       glDeleteProgram(program);
+      release_meshes();
     }
   }
 
   bool setup(std::string* error);
   bool resize(int w, int h, std::string* error);
+  /// Forgets this frame's instances (objects, meshes, query boxes).
+  void clear_instances();
+  /// Adds object `o` as an instance numbered `index` when it may meet the
+  /// frustum (false, nothing added, when it cannot, or is a mesh object
+  /// without triangles); its world box [lo, hi] (a mesh's: object_bounds,
+  /// the box of its placed vertices) goes to `lo`, `hi` when given.
+  bool add_object(const detail::Basis& b, const ObjectDesc& o, std::uint32_t index, glm::dvec3* lo = nullptr,
+                  glm::dvec3* hi = nullptr);
+  /// Draws instance k alone (a ball or box; a mesh's triangles), in the
+  /// current depth and colour state.
+  void draw_instance(std::size_t k);
   /// Checks the resolution and camera, makes the context current and sizes
   /// the framebuffer.
   bool begin(const Camera& cam, int w, int h, detail::Basis* b, std::string* error);
   /// An instance of a ball or box relative to the eye, numbered `index`.
   static detail::Instance instance(const detail::Basis& b, const Vec3& centre, const Vec3& half, bool box,
                                    std::uint32_t index);
-  /// Uploads `instances`.
+  /// Uploads `instances` and the mesh instances, grouped by mesh.
   void upload();
   /// Clears the framebuffer and draws the first `count` instances (ids and
   /// depth; all when count is -1), with the camera's uniforms; one draw call.
@@ -174,6 +245,21 @@ struct Renderer::Impl {
   void end_probes();
   /// Near-optimal's cost model, loaded or measured on first use (cost_model.cpp).
   bool ensure_model(std::string* note, std::string* error);
+  // The mesh pass (mesh_pass.cpp).
+  bool setup_meshes(std::string* error);
+  void release_meshes();
+  /// The mesh's buffers, made on first use; forgets those of meshes gone.
+  const detail::GpuMesh& gpu_mesh(const std::shared_ptr<const Mesh>& mesh);
+  /// Adds mesh object `o` (with triangles), its world box [lo, hi].
+  void add_mesh(const detail::Basis& b, const ObjectDesc& o, std::uint32_t index, const glm::dvec3& lo,
+                const glm::dvec3& hi);
+  void upload_meshes();
+  /// The camera's uniforms of the mesh program.
+  void mesh_uniforms(const detail::Basis& b);
+  /// Draws the mesh instances of instance number below `n` (depth pass).
+  void draw_meshes(std::size_t n);
+  /// Draws mesh instance `slot` alone.
+  void draw_mesh(std::uint32_t slot);
   bool gl_ok(const char* what, std::string* error) {
     const GLenum e = glGetError();
     if (e == GL_NO_ERROR) return true;

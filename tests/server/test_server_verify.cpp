@@ -214,6 +214,29 @@ TEST(Verifier, ObjectsAtReplacesDynamicCentresById) {
   EXPECT_EQ(moved[2].center, Vec3(8.0));
 }
 
+TEST(Verifier, ObjectsAtTurnsMeshesThatMoveWithARotation) {
+  auto tri = std::make_shared<Mesh>();
+  tri->vertices = {Vec3(0.0), Vec3(1.0, 0.0, 0.0), Vec3(0.0, 1.0, 0.0)};
+  tri->triangles = {{0, 1, 2}};
+  ObjectDesc mesh;
+  mesh.id = 3;
+  mesh.shape = Shape::Mesh;
+  mesh.mesh = tri;
+  mesh.rotation = Quat(0.0, 1.0, 0.0, 0.0);
+  const std::vector<ObjectDesc> objects = {test::sphere(2, Vec3(0.0), 1.0), mesh, test::sphere(4, Vec3(1.0), 1.0)};
+  const Quat turn(0.0, 0.0, 0.0, 1.0);
+  // A mesh takes the rotation of a move that has one and keeps its own
+  // otherwise; a sphere has none to take.
+  std::vector<ObjectDesc> moved =
+      server::objects_at(objects, {Move{2, Vec3(5.0), true, turn}, Move{3, Vec3(6.0), true, turn}});
+  EXPECT_EQ(moved[0].rotation, Quat(1.0, 0.0, 0.0, 0.0));
+  EXPECT_EQ(moved[1].center, Vec3(6.0));
+  EXPECT_EQ(moved[1].rotation, turn);
+  moved = server::objects_at(objects, {Move{3, Vec3(7.0)}});
+  EXPECT_EQ(moved[1].center, Vec3(7.0));
+  EXPECT_EQ(moved[1].rotation, mesh.rotation);
+}
+
 TEST(ServerVerify, ServedFramesAreCheckedWithoutMisses) {
   ServerProcess server({"--verify-fraction", "1", "--verify-resolution", "96x54", "--metrics", "127.0.0.1:0"});
   ASSERT_TRUE(server.start());

@@ -37,8 +37,14 @@ std::string describe(const ObjectDesc& obj) {
     char buf[48];
     std::snprintf(buf, sizeof buf, "%.17g", obj.radius);
     s += ", sphere, center=" + vec_str(obj.center) + ", radius=" + buf;
-  } else {
+  } else if (obj.shape == Shape::Box) {
     s += ", box, center=" + vec_str(obj.center) + ", half_extent=" + vec_str(obj.half_extent);
+  } else {
+    char buf[160];
+    std::snprintf(buf, sizeof buf, ", rotation={%.17g, %.17g, %.17g, %.17g}, scale=%.17g", obj.rotation.w,
+                  obj.rotation.x, obj.rotation.y, obj.rotation.z, obj.scale);
+    s += ", mesh of " + (obj.mesh ? std::to_string(obj.mesh->triangles.size()) : std::string("no")) +
+         " triangles, center=" + vec_str(obj.center) + buf;
   }
   if (obj.dynamic) {
     char buf[48];

@@ -318,6 +318,7 @@ void apply_moves_to(std::vector<ObjectDesc>* objects, const std::vector<Move>& m
     for (ObjectDesc& o : *objects) {
       if (o.id == m.id) {
         o.center = m.center;
+        if (m.has_rotation && o.shape == Shape::Mesh) o.rotation = m.rotation;
         break;
       }
     }
@@ -332,6 +333,7 @@ SceneDesc transform_scene(const SceneDesc& scene, double scale, const Vec3& offs
     o.center = o.center * scale + offset;
     o.radius *= scale;
     o.half_extent *= scale;
+    if (o.shape == Shape::Mesh) o.scale *= scale;
     o.max_speed *= scale;
   }
   return out;

@@ -110,7 +110,8 @@ class Mover {
 Camera camera_along(const Vec3& eye, const Vec3& dir, double fov_y_deg = 60.0, double aspect = 1.0,
                     double near = 0.05, double far = 1000.0);
 
-/// Applies moves (by id) to a copy of the objects. Unknown ids are ignored.
+/// Applies moves (by id) to the objects: the centre, and a mesh's rotation
+/// when the move has one. Unknown ids are ignored.
 void apply_moves_to(std::vector<ObjectDesc>* objects, const std::vector<Move>& moves);
 
 /// World transform p -> p * scale + offset applied to a scene, camera or moves

@@ -36,6 +36,23 @@
 // Ties (several objects entered at exactly the same depth) make all of them
 // visible, again the conservative reading.
 //
+// Meshes (Shape::Mesh, voxvis/mesh.h) are surfaces, not solids: a ray meets
+// a mesh where it crosses one of its triangles (either face), and the mesh's
+// depth on the ray is its least such t within [near, far]. A mesh cut by
+// the near plane therefore shows what lies inside it, as rasterization with
+// near-plane clipping does, and an eye inside a closed mesh sees its inner
+// faces (the "contains the eye" rule above is for solids). Triangles are
+// tested in double precision with a watertight test (Woop, Benthin and Wald
+// 2013): a ray on a shared edge or vertex hits the triangles around it,
+// never passes between them, and a ray the rounding puts on an edge counts
+// as a hit (conservative, as ties). The mesh is placed exactly as
+// voxvis/mesh.h says, by taking each ray into the mesh's own frame, where
+// one hierarchy per mesh (built on its first call and kept while the mesh
+// lives, raycast/src/mesh_bvh.h) serves every object that places it. Two
+// objects' surfaces that coincide tie only as far as rounding lets them: a
+// mesh's face and a box's face in the same plane are computed by different
+// operations and may come out a few ulps apart (only the nearer shows).
+//
 // The caster samples the image: it proves visibility (every id it returns is
 // visible), never invisibility. Tests therefore assert PVS ⊇ visible_objects.
 // With pixel_centres(W, H) it samples what the headless renderer samples
@@ -47,7 +64,10 @@
 //
 // Every computed hit is the same as testing every object on every ray
 // (CastOptions::brute_force); visible_objects only finds it faster, through a
-// bounding volume hierarchy built per call (see raycast.cpp).
+// bounding volume hierarchy built per call (see raycast.cpp), and through
+// each mesh's hierarchy over its triangles (the same but for rays grazing
+// a triangle's plane, mesh_bvh.h). Every function is thread-safe: the
+// meshes' hierarchies are shared read-only, their cache behind a mutex.
 #pragma once
 
 #include <cstddef>
@@ -88,8 +108,9 @@ struct CastOptions {
   /// Threads casting rays: 0 chooses (the hardware's threads, one for small
   /// images); the answer is the same for any number.
   int threads = 0;
-  /// Test every object on every ray, with no hierarchy and no culling: the
-  /// definition itself, slow; the tests' reference for the fast path.
+  /// Test every object on every ray (every triangle of a mesh), with no
+  /// hierarchy and no culling: the definition itself, slow; the tests'
+  /// reference for the fast path.
   bool brute_force = false;
 };
 
@@ -98,6 +119,8 @@ struct CastStats {
   std::size_t in_frustum = 0;  ///< Objects that may be hit (the hierarchy's leaves).
   std::size_t rays = 0;
   int threads = 1;
+  std::size_t meshes_built = 0;      ///< Mesh hierarchies this call built (the others were kept from before).
+  std::uint64_t triangle_tests = 0;  ///< Ray–triangle tests, all rays together.
   double build_ms = 0.0;  ///< Culling and building the hierarchy, wall clock.
   double cast_ms = 0.0;   ///< Casting the rays, wall clock.
 };
@@ -125,7 +148,11 @@ bool make_basis(const Camera& cam, ViewBasis* out);
 
 /// Intersection of the closed solid `obj` with the line eye + t*d: the
 /// interval [t0, t1] of t. Returns false when they do not meet. Unbounded
-/// intervals (d = 0 inside a slab) are reported as ±infinity.
+/// intervals (d = 0 inside a slab) are reported as ±infinity. For a mesh (a
+/// surface): the least and the greatest t at which the line crosses one of
+/// its triangles; the caster takes a mesh's depth as its least crossing
+/// within [near, far], which the interval alone does not give. A mesh's
+/// hierarchy comes from the cache (built on its first use).
 bool intersect(const ObjectDesc& obj, const Vec3& eye, const Vec3& d, double* t0, double* t1);
 
 /// The ids of the objects hit first (ties included) by at least one sampled
@@ -137,7 +164,7 @@ std::vector<ObjectId> visible_objects(const std::vector<ObjectDesc>& objects, co
 
 /// The ids of the objects hit first by the single ray through image point
 /// (x, y), x, y in [-1, 1] (several on a tie; empty when the ray hits nothing).
-/// Tests every object (brute force).
+/// Tests every object (brute force; a mesh through its hierarchy).
 std::vector<ObjectId> first_hit(const std::vector<ObjectDesc>& objects, const Camera& cam, double x,
                                 double y);
 

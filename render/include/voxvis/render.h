@@ -5,10 +5,14 @@
 //
 // Definition of "visible" used here (docs/verify.md): an object is visible at
 // W x H when it is the first object hit by the ray through the centre of some
-// pixel, with the conventions of the CPU ray caster (voxvis/raycast.h): objects are
-// solids (closed balls and axis-aligned boxes, drawn exactly, not tessellated),
-// each ray's hits are clipped to [near, far] (an object that contains the eye
-// is hit at depth `near`), pixel (i, j) samples the image point
+// pixel, with the conventions of the CPU ray caster (voxvis/raycast.h): balls
+// and boxes are solids (closed balls and axis-aligned boxes, drawn exactly,
+// not tessellated), meshes are surfaces (their triangles, both faces, placed
+// by centre, rotation and scale as voxvis/mesh.h says, drawn as such: the
+// rasterizer's fill rule lets no pixel centre through between two triangles
+// that share an edge), each ray's hits are clipped to [near, far] (a ball or
+// box that contains the eye is hit at depth `near`; a mesh cut by the near
+// plane shows what lies inside it), pixel (i, j) samples the image point
 // x = -1 + (2i+1)/W, y = -1 + (2j+1)/H. Depths are computed in single
 // precision relative to the eye, so objects entered at depths within about
 // 1e-6 of each other may be told apart differently from a double-precision
@@ -21,7 +25,9 @@
 // count it as a miss (raycast::confirm_near_pixels; docs/verify.md).
 //
 // A Renderer owns its context; the EGL display under it is initialised once
-// and kept for the life of the process. A Renderer may be created on one
+// and kept for the life of the process. It keeps each mesh's vertex and
+// index buffers on the GPU from frame to frame (found by the mesh's address
+// while the mesh lives; meshes are immutable), so a mesh is uploaded once. A Renderer may be created on one
 // thread and used on another, but by one thread at a time: every call makes
 // its context current on the calling thread.
 #pragma once
@@ -69,7 +75,8 @@ struct ContextInfo {
 enum class Method {
   /// One pass draws every object in the frustum into an id buffer, read back
   /// once: the first hit at every pixel centre (one object per pixel on a
-  /// depth tie, the first drawn in id order).
+  /// depth tie, the first drawn: balls and boxes in the order given, then
+  /// meshes).
   Ids,
   /// A depth pass of every object in the frustum, then one
   /// GL_ANY_SAMPLES_PASSED query per candidate (all issued before any result
