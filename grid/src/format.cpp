@@ -20,9 +20,12 @@
 #include "voxvis/format.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <charconv>
 #include <cmath>
 #include <cstddef>
+#include <cstring>
+#include <istream>
 #include <iterator>
 #include <limits>
 #include <string>
@@ -899,6 +902,38 @@ bool parse_frame_line(std::string_view text, std::string_view source, int line, 
   } catch (const std::exception& e) {
     if (error != nullptr) {
       *error = FormatError{std::string(source), line, "", std::string("cannot parse: ") + e.what()};
+    }
+    return false;
+  }
+}
+
+bool is_blank_line(std::string_view line) {
+  return line.find_first_not_of(" \t\r") == std::string_view::npos;
+}
+
+bool parse_frames(std::istream& in, std::string_view source, std::vector<FrameInput>* out,
+                  FormatError* error) {
+  int line_no = 0;
+  try {
+    FrameInput frame;
+    std::string line;
+    while (std::getline(in, line)) {
+      ++line_no;
+      if (is_blank_line(line)) continue;
+      if (!parse_frame_line(line, source, line_no, &frame, error)) return false;
+      out->push_back(std::move(frame));
+    }
+    if (in.bad()) {
+      if (error != nullptr) {
+        *error = FormatError{std::string(source), line_no, "",
+                             std::string("cannot read: ") + std::strerror(errno)};
+      }
+      return false;
+    }
+    return true;
+  } catch (const std::exception& e) {
+    if (error != nullptr) {
+      *error = FormatError{std::string(source), line_no, "", std::string("cannot read: ") + e.what()};
     }
     return false;
   }
