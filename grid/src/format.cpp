@@ -675,8 +675,7 @@ bool parse_object(Checker& ck, const json& v, const std::string& path, ObjectDes
                            number_text(lo[a]));
       }
     }
-    obj.center = (lo + hi) * 0.5;
-    obj.half_extent = (hi - lo) * 0.5;
+    set_box_corners(lo, hi, &obj);
   } else {
     return ck.fail(shape_path,
                    "unknown shape " + quote_text(shape_name, '"') + " (expected \"sphere\" or \"box\")");

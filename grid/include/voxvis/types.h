@@ -50,7 +50,7 @@ enum class Shape : std::uint8_t { Sphere, Box };
 struct ObjectDesc {
   ObjectId id = 0;
   Shape shape = Shape::Sphere;
-  Vec3 center{0.0};       ///< World units. For a box, the centre of [min,max].
+  Vec3 center{0.0};       ///< World units. For a box from corners: set_box_corners (scene.h).
   double radius = 0.0;    ///< Sphere radius, world units, > 0. Unused for boxes.
   Vec3 half_extent{0.0};  ///< Box half size per axis, world units, >= 0. Unused for spheres.
   bool dynamic = false;
