@@ -98,6 +98,26 @@ std::string quote_text(std::string_view s, char quote = '\'') {
   return out;
 }
 
+/// `s` with every byte outside printable ASCII written as \xNN: a field path
+/// made of the input's own keys, or a JSON library message quoting the input,
+/// goes on one terminal line and carries no control sequence.
+std::string printable(std::string_view s) {
+  static constexpr char kHex[] = "0123456789abcdef";
+  std::string out;
+  out.reserve(s.size());
+  for (const char ch : s) {
+    const auto c = static_cast<unsigned char>(ch);
+    if (c >= 0x20 && c < 0x7f) {
+      out += ch;
+    } else {
+      out += "\\x";
+      out += kHex[c >> 4];
+      out += kHex[c & 15];
+    }
+  }
+  return out;
+}
+
 /// "a number", "a string \"x\"", ... for "got ..." in messages.
 std::string describe(const json& v) {
   switch (v.type()) {
@@ -466,9 +486,11 @@ bool parse_dom(std::string_view text, json* root, bool want_lines, int* error_li
                                   /*strict=*/true, /*ignore_comments=*/false);
   if (ok && !builder.failed()) return true;
   if (builder.failed()) {
+    // The document has not been validated yet: the path may hold any key,
+    // and the JSON library's message quotes the input's bytes as they are.
     *error_line = builder.error_line();
-    *error_field = builder.error_field();
-    *error_message = builder.error_message();
+    *error_field = printable(builder.error_field());
+    *error_message = printable(builder.error_message());
   } else {
     *error_line = counter.token_line;
     error_field->clear();
