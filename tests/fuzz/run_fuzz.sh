@@ -13,7 +13,8 @@
 # default build/voxvis when there is one).
 #
 # What it keeps, under $FUZZ_BUILD_DIR/fuzz/:
-#   corpus/<target>/     inputs that reached new code; grows from run to run
+#   corpus/<target>/     inputs that reached new code, merged after every run
+#                        into a smallest set with the same coverage
 #   seeds/<target>/      the seeds of the last run (read only for libFuzzer)
 #   artifacts/<target>/  reproducers: crash-*, leak-*, timeout-*, oom-*
 #   logs/<target>.log    libFuzzer's output of the last run
@@ -139,10 +140,24 @@ for name in "${TARGETS[@]}"; do
   read -r user sys <"$work/time"
   cpu=$(awk -v u="$user" -v s="$sys" 'BEGIN { printf "%.0f", u + s }')
   runs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -n 1)
-  cov=$(grep -aoE 'cov: [0-9]+' "$log" | tail -n 1 | cut -d' ' -f2)
-  size=$(ls "$corpus" | wc -l)
+  cov=$({ grep -aoE 'cov: [0-9]+' "$log" || true; } | tail -n 1 | cut -d' ' -f2)
   result=ok
   if [ "$rc" -ne 0 ] || [ "$(ls "$artifacts" | wc -l)" -ne "$before" ]; then result=FAILED; fi
+  if [ "$result" = ok ]; then
+    # libFuzzer adds a file for every input that reached new code and keeps
+    # the ones a shorter input replaced: keep only a set with the same
+    # coverage (-merge=1), so the corpus does not grow from run to run.
+    merged="$work/corpus/$name.merged"
+    rm -rf "$merged"
+    mkdir -p "$merged"
+    if "$bin" -merge=1 -timeout="$timeout" -max_len="$max_len" "$merged" "$corpus" >"$work/logs/$name.merge.log" 2>&1; then
+      rm -rf "$corpus"
+      mv "$merged" "$corpus"
+    else
+      rm -rf "$merged"
+    fi
+  fi
+  size=$(ls "$corpus" | wc -l)
   printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$(date -u +%FT%TZ)" "$name" "$seconds" "$cpu" \
     "${runs:-0}" "${cov:-0}" "$size" "$result" >>"$work/history.tsv"
   say "fuzz_$name: $result: ${runs:-0} executions in ${cpu} CPU s, coverage ${cov:-0} edges, corpus $size inputs"
