@@ -52,8 +52,14 @@ for tool in clang clang++ cmake ninja; do
 done
 
 say "building the fuzz targets in $build (clang, ASan + UBSan)"
-CC=clang CXX=clang++ cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DVOXVIS_FUZZ=ON >/dev/null
-cmake --build "$build" -j "$(nproc 2>/dev/null || echo 2)" -- $(printf 'fuzz_%s ' "${TARGETS[@]}") >/dev/null
+mkdir -p "$build"
+if ! { CC=clang CXX=clang++ cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DVOXVIS_FUZZ=ON &&
+       cmake --build "$build" -j "$(nproc 2>/dev/null || echo 2)" -- $(printf 'fuzz_%s ' "${TARGETS[@]}"); } \
+     >"$build/fuzz-build.log" 2>&1; then
+  cat "$build/fuzz-build.log" >&2
+  say "error: the fuzz build failed (log above, also in $build/fuzz-build.log)"
+  exit 2
+fi
 
 # ---------------------------------------------------------------------------
 # Seeds.
