@@ -20,9 +20,7 @@ bool read_file(const std::string& path, std::string* text, FormatError* error) {
   return false;
 }
 
-bool blank(const std::string& line) {
-  return line.find_first_not_of(" \t\r") == std::string::npos;
-}
+bool blank(const std::string& line) { return is_blank_line(line); }
 
 bool read_frames(const std::string& path, const char* what, std::vector<FrameInput>* frames,
                  std::vector<int>* lines) {
@@ -31,27 +29,18 @@ bool read_frames(const std::string& path, const char* what, std::vector<FrameInp
     report(FormatError{path, 0, "", std::string("cannot open: ") + std::strerror(errno)});
     return false;
   }
-  FrameInput frame;
   FormatError error;
-  std::string line;
-  int line_no = 0;
-  while (std::getline(in, line)) {
-    ++line_no;
-    if (blank(line)) continue;
-    if (!parse_frame_line(line, path, line_no, &frame, &error)) {
-      report(error);
-      return false;
-    }
-    frames->push_back(frame);
-    if (lines != nullptr) lines->push_back(line_no);
-  }
-  if (in.bad()) {
-    report(FormatError{path, line_no, "", std::string("cannot read: ") + std::strerror(errno)});
+  const std::size_t first = frames->size();
+  if (!parse_frames(in, path, frames, &error)) {
+    report(error);
     return false;
   }
-  if (frames->empty()) {
+  if (frames->size() == first) {
     report(FormatError{path, 0, "", std::string("no frames in the file (") + what + " needs at least one)"});
     return false;
+  }
+  if (lines != nullptr) {
+    for (std::size_t i = first; i < frames->size(); ++i) lines->push_back((*frames)[i].line);
   }
   return true;
 }

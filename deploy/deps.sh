@@ -6,6 +6,7 @@ VOXVIS_PACKAGES=(
   build-essential cmake ninja-build pkg-config
   libglm-dev nlohmann-json3-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  clang libclang-rt-14-dev llvm
   libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc grpc-proto prometheus-cpp-dev
   libcurl4-openssl-dev
   openssl

@@ -70,8 +70,7 @@ Status desc_from_proto(const v1::SceneDescription& in, SceneDesc* out) {
         if (Status s = vec_required(o.box().has_max(), o.box().max(), f + ".max", &hi); !s) return s;
         for (int a = 0; a < 3; ++a)
           if (!(lo[a] <= hi[a])) return Status::Error(f + ".max", "must be >= min on every axis");
-        d.center = (lo + hi) * 0.5;
-        d.half_extent = (hi - lo) * 0.5;
+        set_box_corners(lo, hi, &d);
         break;
       }
       default:

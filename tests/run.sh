@@ -2,7 +2,8 @@
 # Set-up command 2: installs what is missing, then builds and runs the whole
 # test suite twice: a Release build, and a build under AddressSanitizer and
 # UndefinedBehaviorSanitizer. Also checks that the benchmarks run (their
-# figures are not judged here; see docs/performance.md).
+# figures are not judged here; see docs/performance.md), and fuzzes the
+# parsers for a few seconds per target (docs/fuzzing.md).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source deploy/deps.sh
@@ -33,3 +34,9 @@ VOXVIS_TEST_SCALE="${VOXVIS_TEST_SCALE:-1}" \
   ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:intercept_tls_get_addr=0 \
   UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
   ctest --test-dir build-asan --output-on-failure -j "$jobs"
+
+# A short pass (VOXVIS_FUZZ_SECONDS per target): the clang build of the engine
+# library and the targets, then every target in turn; any crash, hang, leak
+# or sanitizer report fails the run. tests/fuzz/run_fuzz.sh runs them longer.
+echo "== Fuzz targets of the parsers (clang, libFuzzer + ASan + UBSan)" >&2
+bash tests/fuzz/run_fuzz.sh "${VOXVIS_FUZZ_SECONDS:-10}"

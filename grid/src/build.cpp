@@ -123,7 +123,37 @@ Status validate_desc(const SceneDesc& d, const SceneOptions& opt) {
   return Status::Ok();
 }
 
+/// `lo` and `hi` (lo <= hi) rounded outwards to multiples of q, a power of
+/// two chosen so that their sum, difference and halves are exact
+/// (set_box_corners). With m = max(|lo|, |hi|) <= 2^e, e as small as can be,
+/// q = 2^(e-52): multiples of q up to 2^e have at most 53 significant bits,
+/// their sums up to 2^(e+1) too, and halves of those are multiples of q/2
+/// up to 2^e. Rounding keeps the magnitudes at most 2^e (a multiple of q),
+/// so rounding again finds the same e and changes nothing. q is at least
+/// 2^-1073, so that halves stay above the smallest subnormal.
+void round_corners_out(double* lo, double* hi) {
+  const double m = std::fmax(std::fabs(*lo), std::fabs(*hi));
+  if (m == 0.0) return;
+  int e = 0;
+  const double f = std::frexp(m, &e);  // m = f * 2^e, f in [0.5, 1)
+  if (f == 0.5) --e;                   // m = 2^(e-1) exactly
+  const double q = std::ldexp(1.0, std::max(e - 52, -1073));
+  // Dividing by a power of two is exact here (the quotients are at most 2^52).
+  *lo = std::floor(*lo / q) * q;
+  *hi = std::ceil(*hi / q) * q;
+}
+
 }  // namespace
+
+void set_box_corners(const Vec3& lo, const Vec3& hi, ObjectDesc* out) {
+  out->shape = Shape::Box;
+  for (int a = 0; a < 3; ++a) {
+    double l = lo[a], h = hi[a];
+    round_corners_out(&l, &h);
+    out->center[a] = (l + h) * 0.5;
+    out->half_extent[a] = (h - l) * 0.5;
+  }
+}
 
 glm::ivec3 Scene::auto_resolution(const SceneDesc& desc, const SceneOptions& opt) {
   // Total for any input (callers may ask before validating): an axis with

@@ -21,9 +21,12 @@
 #include "voxvis/mesh.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <charconv>
 #include <cmath>
 #include <cstddef>
+#include <cstring>
+#include <istream>
 #include <iterator>
 #include <limits>
 #include <string>
@@ -93,6 +96,26 @@ std::string quote_text(std::string_view s, char quote = '\'') {
   }
   if (s.size() > kMax) out += "...";
   out += quote;
+  return out;
+}
+
+/// `s` with every byte outside printable ASCII written as \xNN: a field path
+/// made of the input's own keys, or a JSON library message quoting the input,
+/// goes on one terminal line and carries no control sequence.
+std::string printable(std::string_view s) {
+  static constexpr char kHex[] = "0123456789abcdef";
+  std::string out;
+  out.reserve(s.size());
+  for (const char ch : s) {
+    const auto c = static_cast<unsigned char>(ch);
+    if (c >= 0x20 && c < 0x7f) {
+      out += ch;
+    } else {
+      out += "\\x";
+      out += kHex[c >> 4];
+      out += kHex[c & 15];
+    }
+  }
   return out;
 }
 
@@ -186,11 +209,9 @@ class CountingIterator {
     ++*this;
     return old;
   }
+  // nlohmann compares with !=, which C++20 rewrites into this.
   friend bool operator==(const CountingIterator& a, const CountingIterator& b) {
     return a.p_ == b.p_;
-  }
-  friend bool operator!=(const CountingIterator& a, const CountingIterator& b) {
-    return a.p_ != b.p_;
   }
 
  private:
@@ -466,9 +487,11 @@ bool parse_dom(std::string_view text, json* root, bool want_lines, int* error_li
                                   /*strict=*/true, /*ignore_comments=*/false);
   if (ok && !builder.failed()) return true;
   if (builder.failed()) {
+    // The document has not been validated yet: the path may hold any key,
+    // and the JSON library's message quotes the input's bytes as they are.
     *error_line = builder.error_line();
-    *error_field = builder.error_field();
-    *error_message = builder.error_message();
+    *error_field = printable(builder.error_field());
+    *error_message = printable(builder.error_message());
   } else {
     *error_line = counter.token_line;
     error_field->clear();
@@ -752,8 +775,7 @@ bool parse_object(Checker& ck, const json& v, const std::string& path, ObjectDes
                            number_text(lo[a]));
       }
     }
-    obj.center = (lo + hi) * 0.5;
-    obj.half_extent = (hi - lo) * 0.5;
+    set_box_corners(lo, hi, &obj);
   } else {
     return ck.fail(shape_path, "unknown shape " + quote_text(shape_name, '"') +
                                    " (expected \"sphere\", \"box\" or \"mesh\")");
@@ -983,6 +1005,38 @@ bool parse_frame_line(std::string_view text, std::string_view source, int line, 
   } catch (const std::exception& e) {
     if (error != nullptr) {
       *error = FormatError{std::string(source), line, "", std::string("cannot parse: ") + e.what()};
+    }
+    return false;
+  }
+}
+
+bool is_blank_line(std::string_view line) {
+  return line.find_first_not_of(" \t\r") == std::string_view::npos;
+}
+
+bool parse_frames(std::istream& in, std::string_view source, std::vector<FrameInput>* out,
+                  FormatError* error) {
+  int line_no = 0;
+  try {
+    FrameInput frame;
+    std::string line;
+    while (std::getline(in, line)) {
+      ++line_no;
+      if (is_blank_line(line)) continue;
+      if (!parse_frame_line(line, source, line_no, &frame, error)) return false;
+      out->push_back(std::move(frame));
+    }
+    if (in.bad()) {
+      if (error != nullptr) {
+        *error = FormatError{std::string(source), line_no, "",
+                             std::string("cannot read: ") + std::strerror(errno)};
+      }
+      return false;
+    }
+    return true;
+  } catch (const std::exception& e) {
+    if (error != nullptr) {
+      *error = FormatError{std::string(source), line_no, "", std::string("cannot read: ") + e.what()};
     }
     return false;
   }

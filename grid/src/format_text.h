@@ -19,9 +19,15 @@ inline void append_int(std::string& out, Int v) {
 
 /// JSON number text that parses back to exactly `v` (shortest round-trip
 /// form); null for non-finite values, which no voxvis format accepts.
+/// Negative zero is "-0.0": "-0" reads back as the integer 0, whose double
+/// is +0.
 inline void append_number(std::string& out, double v) {
   if (!std::isfinite(v)) {
     out += "null";
+    return;
+  }
+  if (v == 0.0 && std::signbit(v)) {
+    out += "-0.0";
     return;
   }
   char buf[64];

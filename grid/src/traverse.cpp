@@ -47,9 +47,6 @@ namespace {
 constexpr std::uint32_t kLive = 1;     ///< In view, not blocking.
 constexpr std::uint32_t kBlocked = 2;  ///< Proven hidden.
 constexpr std::uint32_t kOpaque = 3;   ///< In view and opaque beyond the near plane: it blocks.
-/// While frames of other viewers run, Scene::frame renews TBVs expiring
-/// within this many seconds of the frame along with the expired ones.
-constexpr double kRenewAhead = 0.1;
 
 /// Inclusive box of local voxel coordinates.
 struct IBox {
@@ -84,9 +81,9 @@ struct ExitTable {
 
 class Traversal {
  public:
-  Traversal(const Scene::Impl& s, Scratch::Impl& w, const WorldFrustum& wf, FrameStats& st,
-            const detail::FrameGeometry& g, detail::Collector& col)
-      : s_(s), w_(w), wf_(wf), st_(st), col_(col), tag_(static_cast<std::uint32_t>(w.stamp_tag << 2)) {
+  Traversal(const Scene::Impl& s, Scratch::Impl& w, FrameStats& st, const detail::FrameGeometry& g,
+            detail::Collector& col)
+      : s_(s), w_(w), st_(st), col_(col), tag_(static_cast<std::uint32_t>(w.stamp_tag << 2)) {
     for (int a = 0; a < 3; ++a) {
       E_[a] = g.E[a];
       glo_[a] = g.glo[a];
@@ -142,7 +139,6 @@ class Traversal {
 
   const Scene::Impl& s_;
   Scratch::Impl& w_;
-  const WorldFrustum& wf_;
   FrameStats& st_;
   detail::Collector& col_;
   const std::uint32_t tag_;
@@ -655,7 +651,7 @@ namespace detail {
 void traverse_voxels(const Scene::Impl& s, Scratch::Impl& w, const WorldFrustum& wf, FrameStats& st,
                      const FrameGeometry& g) {
   Collector col(s, w, wf, st, g);
-  Traversal(s, w, wf, st, g, col).run();
+  Traversal(s, w, st, g, col).run();
 }
 
 void trace_voxels(const Scene::Impl& s, const Scratch::Impl& w, FrameTrace& trace) {

@@ -2,6 +2,7 @@
 // deterministic generators (generate.h).
 #include <cmath>
 #include <limits>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -614,6 +615,42 @@ TEST(FrameFormat, RoundTripIsExact) {
   // No moves: no "moves" key.
   f.moves.clear();
   EXPECT_THAT(frame_to_json(f), Not(HasSubstr("moves")));
+}
+
+TEST(FrameFormat, WholeFileSkipsBlankLinesAndCountsThem) {
+  // Blank lines anywhere, Windows line endings, no newline at the end.
+  std::istringstream in(std::string("\n") + kFrame + "\n\n \t\r\n" + kFrame + "\r\n" + kFrame);
+  std::vector<FrameInput> frames;
+  FormatError err;
+  ASSERT_TRUE(parse_frames(in, "frames.jsonl", &frames, &err)) << err.str();
+  ASSERT_EQ(frames.size(), 3u);
+  EXPECT_EQ(frames[0].line, 2);
+  EXPECT_EQ(frames[1].line, 5);
+  EXPECT_EQ(frames[2].line, 6);
+  EXPECT_EQ(frames[2].moves.size(), 1u);
+  EXPECT_TRUE(is_blank_line(" \t\r"));
+  EXPECT_FALSE(is_blank_line(" x"));
+}
+
+TEST(FrameFormat, WholeFileStopsAtTheFirstErrorWithItsLine) {
+  std::istringstream in(std::string(kFrame) + "\n\n" + frame_with("\"far\": 1000", "\"far\": 0.01") + "\n" +
+                        "{\"broken\"\n");
+  std::vector<FrameInput> frames;
+  FormatError err;
+  ASSERT_FALSE(parse_frames(in, "frames.jsonl", &frames, &err));
+  EXPECT_EQ(err.str(), "frames.jsonl:3: far: must be finite and > near, got 0.01");
+  ASSERT_EQ(frames.size(), 1u);  // The frames before the error.
+  EXPECT_EQ(frames[0].line, 1);
+}
+
+TEST(FrameFormat, WholeFileWithoutFramesIsNotAnErrorHere) {
+  for (const char* text : {"", "\n", " \r\n\t\n"}) {
+    std::istringstream in(text);
+    std::vector<FrameInput> frames;
+    FormatError err;
+    EXPECT_TRUE(parse_frames(in, "frames.jsonl", &frames, &err)) << err.str();
+    EXPECT_TRUE(frames.empty());
+  }
 }
 
 // ---------------------------------------------------------------------------

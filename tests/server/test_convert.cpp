@@ -47,6 +47,30 @@ TEST(Convert, SceneDescriptionBecomesEngineInput) {
   EXPECT_FALSE(desc.grid.has_value());
 }
 
+TEST(Convert, BoxesComeBackTheSameFromTheSavedScene) {
+  // The server saves a described scene as scene_to_json's text and reads that
+  // after a restart: its boxes must come back exactly (corners such as these
+  // came back an ulp off before set_box_corners).
+  v1::SceneDescription d = good_scene();
+  v1::Object* b = d.add_objects();
+  b->set_id(9);
+  set(b->mutable_box()->mutable_min(), 0.1, 0.2, 0.3);
+  set(b->mutable_box()->mutable_max(), 0.7, 0.9, 0.35);
+  SceneDesc desc;
+  ASSERT_TRUE(desc_from_proto(d, &desc));
+  SceneDesc saved;
+  FormatError err;
+  ASSERT_TRUE(parse_scene(scene_to_json(desc), "saved.json", &saved, &err)) << err.str();
+  ASSERT_EQ(saved.objects.size(), desc.objects.size());
+  for (std::size_t i = 0; i < desc.objects.size(); ++i) {
+    EXPECT_EQ(saved.objects[i].center, desc.objects[i].center) << i;
+    EXPECT_EQ(saved.objects[i].half_extent, desc.objects[i].half_extent) << i;
+  }
+  const ObjectDesc& o = desc.objects[2];
+  EXPECT_LE(o.center.x - o.half_extent.x, 0.1);
+  EXPECT_GE(o.center.x + o.half_extent.x, 0.7);
+}
+
 TEST(Convert, SceneErrorsNameTheField) {
   struct Case {
     const char* field;

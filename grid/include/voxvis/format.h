@@ -49,6 +49,17 @@ int scene_field_line(std::string_view text, std::string_view field);
 bool parse_frame_line(std::string_view text, std::string_view source, int line,
                       FrameInput* out, FormatError* error);
 
+/// Whether a JSON Lines line (frames or output) is blank: only spaces, tabs
+/// or '\r'. Readers skip blank lines but count them.
+bool is_blank_line(std::string_view line);
+
+/// Reads a whole frames file from `in`: every line that is not blank, in
+/// order, appended to `out` with its 1-based line. Stops at the first error
+/// (the frames before it stay in `out`), a read error included. A file
+/// without frames is not an error here.
+bool parse_frames(std::istream& in, std::string_view source, std::vector<FrameInput>* out,
+                  FormatError* error);
+
 /// Serializes a scene to voxvis-scene/1 text (used by `voxvis generate`).
 std::string scene_to_json(const SceneDesc& scene);
 

@@ -308,4 +308,17 @@ Status validate_camera(const Camera& camera);
 /// Scene::frame and Scene::apply_moves do; the error names `field`.
 Status validate_time(const std::string& field, double t);
 
+/// Makes `out` the box [lo, hi] (finite, lo <= hi on every axis), as every
+/// reader of box corners does (the scene format, the wire). The engine's box
+/// is centre ± half extent (scene_impl.h), and in doubles a centre and half
+/// extent computed from arbitrary corners give other corners back (about
+/// one box in four an ulp smaller). So the corners are first rounded
+/// outwards to a multiple of 2^-52 of the power of two at or above the larger
+/// corner magnitude (never past kMaxCoordinate): then every sum and half is exact,
+/// centre ± half extent are those corners exactly, the engine's box contains
+/// [lo, hi], each side moved out by less than two ulps of the larger corner
+/// magnitude, and corners written from it (scene_to_json) read back to the
+/// same centre and half extent.
+void set_box_corners(const Vec3& lo, const Vec3& hi, ObjectDesc* out);
+
 }  // namespace voxvis

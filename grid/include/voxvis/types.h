@@ -66,7 +66,7 @@ struct Mesh {
 struct ObjectDesc {
   ObjectId id = 0;
   Shape shape = Shape::Sphere;
-  Vec3 center{0.0};       ///< World units. For a box, the centre of [min,max]; for a mesh, where its model origin goes.
+  Vec3 center{0.0};       ///< World units. For a box from corners: set_box_corners (scene.h); for a mesh, where its model origin goes.
   double radius = 0.0;    ///< Sphere radius, world units, > 0. Unused for boxes and meshes.
   Vec3 half_extent{0.0};  ///< Box half size per axis, world units, >= 0. Unused for spheres and meshes.
   bool dynamic = false;

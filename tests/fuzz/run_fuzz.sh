@@ -1,0 +1,184 @@
+#!/usr/bin/env bash
+# run_fuzz.sh [SECONDS_PER_TARGET] — builds the libFuzzer targets of
+# tests/fuzz (clang, AddressSanitizer with leak detection, UBSan) in
+# build-fuzz/ and runs each for SECONDS_PER_TARGET seconds (default 60), one
+# after the other. Exits non-zero if any target found a crash, a hang (an
+# input slower than FUZZ_TIMEOUT seconds), a leak, an out-of-memory or a
+# sanitizer report, and prints where the reproducer is. docs/fuzzing.md says
+# more; tests/run.sh runs it for a few seconds per target.
+#
+# Environment: FUZZ_BUILD_DIR (default build-fuzz), FUZZ_TIMEOUT (seconds
+# per input, default 10), FUZZ_MAX_LEN (bytes per input, default 16384),
+# VOXVIS_CLI (a voxvis binary whose `generate` presets seed the corpora,
+# default build/voxvis when there is one).
+#
+# What it keeps, under $FUZZ_BUILD_DIR/fuzz/:
+#   corpus/<target>/     inputs that reached new code, merged after every run
+#                        into a smallest set with the same coverage
+#   seeds/<target>/      the seeds of the last run (read only for libFuzzer)
+#   artifacts/<target>/  reproducers: crash-*, leak-*, timeout-*, oom-*
+#   logs/<target>.log    libFuzzer's output of the last run
+#   history.tsv          one line per run: date, target, seconds, CPU seconds,
+#                        executions, coverage, corpus size, result
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+
+# The targets, in the order they run: fuzz_<name> of tests/fuzz/CMakeLists.txt,
+# seeded from tests/fuzz/seeds/<name>/ (and seed_<name> below, if defined),
+# with the dictionary tests/fuzz/<name>.dict if there is one.
+TARGETS=(
+  scene
+  frames
+)
+
+seconds="${1:-60}"
+if ! [[ "$seconds" =~ ^[1-9][0-9]*$ ]]; then
+  echo "usage: tests/fuzz/run_fuzz.sh [SECONDS_PER_TARGET]   (a whole number of seconds >= 1, got '$seconds')" >&2
+  exit 2
+fi
+build="${FUZZ_BUILD_DIR:-build-fuzz}"
+timeout="${FUZZ_TIMEOUT:-10}"
+max_len="${FUZZ_MAX_LEN:-16384}"
+cli="${VOXVIS_CLI:-build/voxvis}"
+work="$build/fuzz"
+
+say() { echo "run_fuzz: $*" >&2; }
+
+for tool in clang clang++ cmake ninja; do
+  if ! command -v "$tool" >/dev/null; then
+    say "error: $tool not found; deploy/deps.sh lists the Debian packages (clang, libclang-rt-14-dev)"
+    exit 2
+  fi
+done
+
+say "building the fuzz targets in $build (clang, ASan + UBSan)"
+mkdir -p "$build"
+if ! { CC=clang CXX=clang++ cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DVOXVIS_FUZZ=ON &&
+       cmake --build "$build" -j "$(nproc 2>/dev/null || echo 2)" -- $(printf 'fuzz_%s ' "${TARGETS[@]}"); } \
+     >"$build/fuzz-build.log" 2>&1; then
+  cat "$build/fuzz-build.log" >&2
+  say "error: the fuzz build failed (log above, also in $build/fuzz-build.log)"
+  exit 2
+fi
+
+# ---------------------------------------------------------------------------
+# Seeds.
+
+# The first $2 objects of a scene file written by scene_to_json (one object
+# per line), still a valid scene: small seeds mutate faster.
+first_objects() {
+  awk -v n="$2" '
+    /^    \{/ { if (++k > n) next; obj = $0; sub(/,$/, "", obj)
+                if (pending != "") print pending ","; pending = obj; next }
+    /^  \]/   { if (pending != "") print pending; pending = ""; print; next }
+    { print }' "$1"
+}
+
+# Writes a small scene and frames file for each `voxvis generate` preset
+# into $1 (once: they depend only on the presets).
+generated() {
+  local dir="$1"
+  [ -x "$cli" ] || return 0
+  [ -f "$dir/done" ] && return 0
+  mkdir -p "$dir"
+  local preset args
+  for preset in paper indoor city voxel-world; do
+    case "$preset" in
+      paper) args=(--objects 30 --dynamic 5) ;;
+      indoor|city) args=(--size 1) ;;
+      voxel-world) args=(--size 16) ;;
+    esac
+    "$cli" generate --preset "$preset" "${args[@]}" --frames 3 \
+      --scene-out "$dir/$preset.json" --frames-out "$dir/$preset.jsonl" >/dev/null
+  done
+  touch "$dir/done"
+}
+
+seed_scene() {
+  local out="$1" f
+  first_objects examples/paper/scene.json 12 >"$out/example-paper.json"
+  for f in "$work/generated"/*.json; do
+    [ -f "$f" ] && first_objects "$f" 12 >"$out/generated-$(basename "$f")"
+  done
+  return 0
+}
+
+seed_frames() {
+  local out="$1" f
+  # Two lines of the walkthrough, with the first three of their 200 moves.
+  head -n 2 examples/paper/frames.jsonl |
+    sed -E 's/("moves": \[(\{[^}]*\}, ){2}\{[^}]*\})(, \{[^}]*\})*\]/\1]/' >"$out/example-paper.jsonl"
+  for f in "$work/generated"/*.jsonl; do
+    [ -f "$f" ] && cp "$f" "$out/generated-$(basename "$f")"
+  done
+  return 0
+}
+
+generated "$work/generated"
+
+# ---------------------------------------------------------------------------
+# Runs.
+
+export ASAN_OPTIONS="detect_leaks=1${ASAN_OPTIONS:+:$ASAN_OPTIONS}"
+export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1${UBSAN_OPTIONS:+:$UBSAN_OPTIONS}"
+
+failed=()
+for name in "${TARGETS[@]}"; do
+  bin="$build/fuzz_$name"
+  corpus="$work/corpus/$name"
+  seeds="$work/seeds/$name"
+  artifacts="$work/artifacts/$name"
+  log="$work/logs/$name.log"
+  mkdir -p "$corpus" "$artifacts" "$(dirname "$log")"
+  rm -rf "$seeds"
+  mkdir -p "$seeds"
+  if [ -d "tests/fuzz/seeds/$name" ]; then cp "tests/fuzz/seeds/$name"/* "$seeds"/; fi
+  if declare -F "seed_$name" >/dev/null; then "seed_$name" "$seeds"; fi
+  args=(-max_total_time="$seconds" -timeout="$timeout" -max_len="$max_len" -detect_leaks=1
+        -print_final_stats=1 -artifact_prefix="$artifacts/")
+  if [ -f "tests/fuzz/$name.dict" ]; then args+=(-dict="tests/fuzz/$name.dict"); fi
+
+  say "fuzz_$name: ${seconds} s, corpus $corpus ($(ls "$corpus" | wc -l) inputs), log $log"
+  before=$(ls "$artifacts" | wc -l)
+  rc=0
+  TIMEFORMAT='%U %S'
+  { time "$bin" "${args[@]}" "$corpus" "$seeds" >"$log" 2>&1 || rc=$?; } 2>"$work/time"
+  read -r user sys <"$work/time"
+  cpu=$(awk -v u="$user" -v s="$sys" 'BEGIN { printf "%.0f", u + s }')
+  runs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -n 1)
+  cov=$({ grep -aoE 'cov: [0-9]+' "$log" || true; } | tail -n 1 | cut -d' ' -f2)
+  result=ok
+  if [ "$rc" -ne 0 ] || [ "$(ls "$artifacts" | wc -l)" -ne "$before" ]; then result=FAILED; fi
+  if [ "$result" = ok ]; then
+    # libFuzzer adds a file for every input that reached new code and keeps
+    # the ones a shorter input replaced: keep only a set with the same
+    # coverage (-merge=1), so the corpus does not grow from run to run.
+    merged="$work/corpus/$name.merged"
+    rm -rf "$merged"
+    mkdir -p "$merged"
+    if "$bin" -merge=1 -timeout="$timeout" -max_len="$max_len" "$merged" "$corpus" >"$work/logs/$name.merge.log" 2>&1; then
+      rm -rf "$corpus"
+      mv "$merged" "$corpus"
+    else
+      rm -rf "$merged"
+    fi
+  fi
+  size=$(ls "$corpus" | wc -l)
+  printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$(date -u +%FT%TZ)" "$name" "$seconds" "$cpu" \
+    "${runs:-0}" "${cov:-0}" "$size" "$result" >>"$work/history.tsv"
+  say "fuzz_$name: $result: ${runs:-0} executions in ${cpu} CPU s, coverage ${cov:-0} edges, corpus $size inputs"
+  if [ "$result" != ok ]; then
+    failed+=("$name")
+    grep -aE '^(==[0-9]+==ERROR|SUMMARY|fuzz check failed|.*runtime error)' "$log" | head -n 5 >&2 || true
+    for f in $(ls -t "$artifacts" | head -n $(( $(ls "$artifacts" | wc -l) - before ))); do
+      say "reproducer: $artifacts/$f  (run: $bin $artifacts/$f)"
+    done
+    say "full report: $log"
+  fi
+done
+
+if [ ${#failed[@]} -ne 0 ]; then
+  say "FAILED: ${failed[*]}"
+  exit 1
+fi
+say "all targets ran clean"
