@@ -276,17 +276,12 @@ Status prepare(const SceneDesc& desc, const SceneOptions& options, Scene::Impl& 
 /// emit(0, voxel) once a voxel, in index order. False when cancelled.
 template <class Emit>
 bool mesh_voxels(const Scene::Impl& s, const Obj& o, BuildMeter& meter, Emit&& emit) {
-  ObjectDesc d;
-  d.shape = Shape::Mesh;
-  d.mesh = o.mesh;
-  d.center = o.mesh_origin;
-  d.rotation = o.mesh_rotation;
-  d.scale = o.mesh_scale;
+  const ObjectDesc d = o.mesh_desc();
   const Mesh& mesh = *o.mesh;
   std::vector<Vec3> g(mesh.vertices.size());
   for (std::size_t i = 0; i < g.size(); ++i) g[i] = s.to_grid(place(d, mesh.vertices[i]));
-  // Placement (64 ulps of its magnitudes, as place_mesh) and mapping (slop).
-  const double sl = 64.0 * kUlp * (max_abs(o.mesh_origin) + o.mesh_extent) + s.slop(max_abs(o.center) + max_abs(o.half));
+  // Placement and mapping (slop) allowances.
+  const double sl = o.mesh_allowance() + s.slop(max_abs(o.center) + max_abs(o.half));
   const Vec3 grow = sl * s.inv_vs + 1e-9;
   std::vector<std::int64_t> voxels;
   for (const auto& t : mesh.triangles) {

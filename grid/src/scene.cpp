@@ -162,23 +162,18 @@ constexpr int kMaxUnion = 16;  ///< Inner boxes the exact union test takes per v
 
 }  // namespace
 
+double detail::Obj::mesh_allowance() const { return 64.0 * kUlp * (max_abs(mesh_origin) + mesh_extent) + 1e-300; }
+
 void Scene::Impl::place_mesh(Obj& o) const {
-  // Placed points are rounded by a few ulps of the placement's magnitudes;
-  // 64 ulps of them and the box's own rounding are allowed for.
-  const double m = 64.0 * kUlp * (max_abs(o.mesh_origin) + o.mesh_extent) + 1e-300;
+  // The placed points' rounding and the box's own are allowed for.
+  const double m = o.mesh_allowance();
   if (o.dynamic) {
     o.center = o.mesh_origin + o.mesh_scale * (o.mesh_rotation * o.mesh_centroid);
     o.half = Vec3(o.radius + m);
     return;
   }
-  ObjectDesc d;
-  d.shape = Shape::Mesh;
-  d.mesh = o.mesh;
-  d.center = o.mesh_origin;
-  d.rotation = o.mesh_rotation;
-  d.scale = o.mesh_scale;
   Vec3 lo, hi;
-  mesh_bounds(d, &lo, &hi);
+  mesh_bounds(o.mesh_desc(), &lo, &hi);
   o.center = (lo + hi) * 0.5;
   o.half = glm::max(hi - o.center, o.center - lo) + m;
 }

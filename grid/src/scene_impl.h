@@ -115,6 +115,20 @@ struct Obj {
 
   Vec3 box_lo() const { return center - half; }
   Vec3 box_hi() const { return center + half; }
+  /// A mesh's placement as the ObjectDesc voxvis/mesh.h reads (place(),
+  /// mesh_bounds()).
+  ObjectDesc mesh_desc() const {
+    ObjectDesc d;
+    d.shape = Shape::Mesh;
+    d.mesh = mesh;
+    d.center = mesh_origin;
+    d.rotation = mesh_rotation;
+    d.scale = mesh_scale;
+    return d;
+  }
+  /// The rounding allowance of placed points: 64 ulps of the placement's
+  /// magnitudes (a few ulps of them is the rounding).
+  double mesh_allowance() const;
 };
 
 /// An entry of a brick: (slot << 1 | is_tbv) and the generation of the

@@ -574,6 +574,22 @@ void BM_HiddenDynamic(benchmark::State& state, int n, int ob) {
   state.SetItemsProcessed(static_cast<std::int64_t>(times.size()));
 }
 
+/// The recording's scene on `grid` (its own when grid.x is 0) with the
+/// occlusion buffer `ob` pixels wide (0: off); null, the benchmark skipped
+/// with the engine's error, when it cannot be built.
+std::unique_ptr<Scene> recording_scene(benchmark::State& state, const Recording& rec, glm::ivec3 grid, int ob) {
+  SceneDesc desc = rec.scene;
+  if (grid.x > 0) desc.grid = grid;
+  SceneOptions options;
+  options.occlusion_buffer = ob;
+  std::unique_ptr<Scene> scene;
+  if (const Status st = Scene::create(desc, options, &scene); !st.ok) {
+    state.SkipWithError(("Scene::create: " + st.str()).c_str());
+    return nullptr;
+  }
+  return scene;
+}
+
 /// Frames of `viewers` viewers of one scene, each on its own thread with its
 /// own Scratch, walking the recording from its own start; with `moves`,
 /// viewer 0 also applies the recording's moves before each of its frames, as
@@ -584,17 +600,10 @@ void BM_HiddenDynamic(benchmark::State& state, int n, int ob) {
 void BM_Viewers(benchmark::State& state, Path which, glm::ivec3 grid, int viewers, bool moves, int ob) {
   constexpr int kFrames = 100;
   const Recording& rec = recording(which);
-  SceneDesc desc = rec.scene;
-  if (grid.x > 0) desc.grid = grid;
-  std::unique_ptr<Scene> scene;
   // The buffer off (the names without /ob:, as in docs/performance.md's
   // first table, measured before the buffer became the default) or at `ob`.
-  SceneOptions options;
-  options.occlusion_buffer = ob;
-  if (const Status st = Scene::create(desc, options, &scene); !st.ok) {
-    state.SkipWithError(("Scene::create: " + st.str()).c_str());
-    return;
-  }
+  const std::unique_ptr<Scene> scene = recording_scene(state, rec, grid, ob);
+  if (!scene) return;
   const std::size_t n = rec.frames.size();
   std::vector<ViewerId> ids;
   std::vector<Scratch> scratch(static_cast<std::size_t>(viewers));
@@ -660,15 +669,8 @@ void BM_Ticks(benchmark::State& state, Path which, glm::ivec3 grid, int viewers,
   constexpr int kTicks = 100;
   constexpr int kWorkers = 2;
   const Recording& rec = recording(which);
-  SceneDesc desc = rec.scene;
-  if (grid.x > 0) desc.grid = grid;
-  std::unique_ptr<Scene> scene;
-  SceneOptions options;
-  options.occlusion_buffer = ob;
-  if (const Status st = Scene::create(desc, options, &scene); !st.ok) {
-    state.SkipWithError(("Scene::create: " + st.str()).c_str());
-    return;
-  }
+  const std::unique_ptr<Scene> scene = recording_scene(state, rec, grid, ob);
+  if (!scene) return;
   const std::size_t n = rec.frames.size();
   std::vector<ViewerId> ids;
   for (int v = 0; v < viewers; ++v) ids.push_back(scene->add_viewer());

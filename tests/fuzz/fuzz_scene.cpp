@@ -20,10 +20,21 @@ namespace voxvis::fuzz {
 namespace {
 
 /// Exactly the same, field by field (radius for spheres, half extents for
-/// boxes: the other one is not part of the shape).
+/// boxes, triangles and placement for meshes: the others are not part of
+/// the shape).
 bool same_object(const ObjectDesc& a, const ObjectDesc& b) {
   if (a.id != b.id || a.shape != b.shape || !same(a.center, b.center) || a.dynamic != b.dynamic) return false;
   if (a.dynamic && !same(a.max_speed, b.max_speed)) return false;
+  if (a.shape == Shape::Mesh) {
+    if (!a.mesh || !b.mesh || a.mesh->triangles != b.mesh->triangles ||
+        a.mesh->vertices.size() != b.mesh->vertices.size() || !same(a.scale, b.scale) ||
+        !same(a.rotation.w, b.rotation.w) || !same(a.rotation.x, b.rotation.x) ||
+        !same(a.rotation.y, b.rotation.y) || !same(a.rotation.z, b.rotation.z))
+      return false;
+    for (std::size_t i = 0; i < a.mesh->vertices.size(); ++i)
+      if (!same(a.mesh->vertices[i], b.mesh->vertices[i])) return false;
+    return true;
+  }
   return a.shape == Shape::Sphere ? same(a.radius, b.radius) : same(a.half_extent, b.half_extent);
 }
 
