@@ -29,7 +29,10 @@ bool same_frame(const FrameInput& a, const FrameInput& b) {
     return false;
   }
   for (std::size_t i = 0; i < a.moves.size(); ++i) {
-    if (a.moves[i].id != b.moves[i].id || !same(a.moves[i].center, b.moves[i].center)) return false;
+    const Move& m = a.moves[i];
+    const Move& n = b.moves[i];
+    if (m.id != n.id || !same(m.center, n.center) || m.has_rotation != n.has_rotation) return false;
+    if (m.has_rotation && !same(m.rotation, n.rotation)) return false;
   }
   return true;
 }
