@@ -22,6 +22,9 @@ namespace voxvis::fuzz {
 /// The same double, sign of zero included (what a round trip must keep).
 inline bool same(double a, double b) { return a == b && std::signbit(a) == std::signbit(b); }
 inline bool same(const Vec3& a, const Vec3& b) { return same(a.x, b.x) && same(a.y, b.y) && same(a.z, b.z); }
+inline bool same(const Quat& a, const Quat& b) {
+  return same(a.w, b.w) && same(a.x, b.x) && same(a.y, b.y) && same(a.z, b.z);
+}
 
 /// Lines of `text` as an editor counts them: newlines + 1.
 inline int line_count(std::string_view text) {

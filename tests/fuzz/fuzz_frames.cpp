@@ -29,11 +29,10 @@ bool same_frame(const FrameInput& a, const FrameInput& b) {
     return false;
   }
   for (std::size_t i = 0; i < a.moves.size(); ++i) {
-    const Move &m = a.moves[i], &n = b.moves[i];
+    const Move& m = a.moves[i];
+    const Move& n = b.moves[i];
     if (m.id != n.id || !same(m.center, n.center) || m.has_rotation != n.has_rotation) return false;
-    if (m.has_rotation && (!same(m.rotation.w, n.rotation.w) || !same(m.rotation.x, n.rotation.x) ||
-                           !same(m.rotation.y, n.rotation.y) || !same(m.rotation.z, n.rotation.z)))
-      return false;
+    if (m.has_rotation && !same(m.rotation, n.rotation)) return false;
   }
   return true;
 }

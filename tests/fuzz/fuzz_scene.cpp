@@ -19,23 +19,28 @@
 namespace voxvis::fuzz {
 namespace {
 
-/// Exactly the same, field by field (radius for spheres, half extents for
-/// boxes, triangles and placement for meshes: the others are not part of
-/// the shape).
+bool same_mesh(const Mesh& a, const Mesh& b) {
+  if (a.vertices.size() != b.vertices.size() || a.triangles != b.triangles) return false;
+  for (std::size_t i = 0; i < a.vertices.size(); ++i) {
+    if (!same(a.vertices[i], b.vertices[i])) return false;
+  }
+  return true;
+}
+
+/// Exactly the same, field by field (only the fields of the object's shape).
 bool same_object(const ObjectDesc& a, const ObjectDesc& b) {
   if (a.id != b.id || a.shape != b.shape || !same(a.center, b.center) || a.dynamic != b.dynamic) return false;
   if (a.dynamic && !same(a.max_speed, b.max_speed)) return false;
-  if (a.shape == Shape::Mesh) {
-    if (!a.mesh || !b.mesh || a.mesh->triangles != b.mesh->triangles ||
-        a.mesh->vertices.size() != b.mesh->vertices.size() || !same(a.scale, b.scale) ||
-        !same(a.rotation.w, b.rotation.w) || !same(a.rotation.x, b.rotation.x) ||
-        !same(a.rotation.y, b.rotation.y) || !same(a.rotation.z, b.rotation.z))
-      return false;
-    for (std::size_t i = 0; i < a.mesh->vertices.size(); ++i)
-      if (!same(a.mesh->vertices[i], b.mesh->vertices[i])) return false;
-    return true;
+  switch (a.shape) {
+    case Shape::Sphere:
+      return same(a.radius, b.radius);
+    case Shape::Box:
+      return same(a.half_extent, b.half_extent);
+    case Shape::Mesh:
+      return a.mesh != nullptr && b.mesh != nullptr && same_mesh(*a.mesh, *b.mesh) &&
+             same(a.rotation, b.rotation) && same(a.scale, b.scale);
   }
-  return a.shape == Shape::Sphere ? same(a.radius, b.radius) : same(a.half_extent, b.half_extent);
+  return false;
 }
 
 /// The first difference between two scenes, or "" when they are the same.
