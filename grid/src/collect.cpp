@@ -90,9 +90,12 @@ void Collector::add(std::uint32_t slot) {
       return;
     }
     // Every object the frame finds is an occluder, at the position the
-    // scene has for it (the one it is visible at); meshes not yet (their
-    // box is not solid).
-    if (o.shape != Shape::Mesh) {
+    // scene has for it (the one it is visible at): a mesh by its triangles
+    // (a static one's are drawn brick by brick as the traversal reaches
+    // them, render_brick_triangles; its box is not solid).
+    if (o.shape == Shape::Mesh) {
+      if (o.dynamic) render_mesh(o);
+    } else {
       const ScopedTicks timed(w_.render_ticks);
       const bool wrote =
           o.shape == Shape::Sphere ? ob.render_sphere(o.center, o.radius) : ob.render_box(o.box_lo(), o.box_hi());
@@ -132,6 +135,59 @@ void Collector::render_opaque_box_at(std::uint32_t b) {
   const Vec3 hi = spec.bounds_min + Vec3(vb.hi + 1) * spec.voxel_size;
   const ScopedTicks timed(w_.render_ticks);
   if (w_.ob.render_box(lo, hi)) ++st_.ob_occluders;
+}
+
+void Collector::render_brick_triangles(std::size_t bi) {
+  if (s_.brick_tri_offsets.empty()) return;
+  const std::uint32_t first = s_.brick_tri_offsets[bi], last = s_.brick_tri_offsets[bi + 1];
+  if (first == last) return;
+  const ScopedTicks timed(w_.render_ticks);
+  for (std::uint32_t k = first; k < last; ++k) {
+    const TriRef& t = s_.brick_tris[k];
+    const Obj& o = s_.objs[t.slot];
+    std::uint32_t& seen = w_.tri_seen[o.tri_base + t.tri];
+    if (seen == w_.frame) continue;
+    seen = w_.frame;
+    const std::uint32_t partner = o.quads->partner[t.tri];
+    if (partner != MeshQuads::kNone) w_.tri_seen[o.tri_base + partner] = w_.frame;
+    render_triangle_of(o, o.placed.data(), t.tri);
+  }
+}
+
+void Collector::render_mesh(const Obj& o) {
+  const ScopedTicks timed(w_.render_ticks);
+  const ObjectDesc d = o.mesh_desc();
+  const Mesh& mesh = *o.mesh;
+  std::vector<Vec3>& p = w_.placed;
+  p.resize(mesh.vertices.size());
+  for (std::size_t i = 0; i < p.size(); ++i) p[i] = place(d, mesh.vertices[i]);
+  const std::uint32_t n = static_cast<std::uint32_t>(mesh.triangles.size());
+  for (std::uint32_t t = 0; t < n; ++t) {
+    const std::uint32_t partner = o.quads->partner[t];
+    if (partner == MeshQuads::kNone || partner > t) render_triangle_of(o, p.data(), t);
+  }
+}
+
+void Collector::render_triangle_of(const Obj& o, const Vec3* p, std::uint32_t t) {
+  const double err = o.mesh_allowance();
+  const std::uint32_t partner = o.quads->partner[t];
+  bool raised = false;
+  if (partner != MeshQuads::kNone) {
+    const auto& q = o.quads->quad[t];
+    const Vec3 corners[4] = {p[q[0]], p[q[1]], p[q[2]], p[q[3]]};
+    if (!w_.ob.render_quad(corners, err, &raised)) {
+      // Not drawable as one quad here (crossing the near plane, or its
+      // image not convex): its two triangles.
+      const auto& a = o.mesh->triangles[t];
+      const auto& b = o.mesh->triangles[partner];
+      raised = w_.ob.render_triangle(p[a[0]], p[a[1]], p[a[2]], err);
+      raised = w_.ob.render_triangle(p[b[0]], p[b[1]], p[b[2]], err) || raised;
+    }
+  } else {
+    const auto& a = o.mesh->triangles[t];
+    raised = w_.ob.render_triangle(p[a[0]], p[a[1]], p[a[2]], err);
+  }
+  if (raised) ++st_.ob_occluders;
 }
 
 bool Collector::front_blocked(const std::int64_t v[3], std::int64_t idx) const {

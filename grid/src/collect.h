@@ -70,6 +70,9 @@ class Collector {
   }
   /// Draws opaque box b (kNoBox: none), once a frame.
   void render_opaque_box_at(std::uint32_t b);
+  /// Draws the static mesh triangles meeting brick `bi` (Scene::Impl::
+  /// brick_tris), each once a frame.
+  void render_brick_triangles(std::size_t bi);
   /// Whether the static opaque face neighbours of local voxel v on the eye's
   /// side hide it (idx: its grid index; docs/design.md, "Front neighbours").
   bool front_blocked(const std::int64_t v[3], std::int64_t idx) const;
@@ -88,6 +91,11 @@ class Collector {
   /// neighbours: then no point of o is visible though it touches voxels in
   /// view (a block just under the ground touches the air above it).
   bool own_voxels_hidden(const Obj& o) const;
+  /// Draws every triangle of dynamic mesh o at its current placement.
+  void render_mesh(const Obj& o);
+  /// Draws triangle t of mesh o (placed vertices p), with its partner as
+  /// one quad when it has one (mesh_pairs.h).
+  void render_triangle_of(const Obj& o, const Vec3* p, std::uint32_t t);
 
   const Scene::Impl& s_;
   Scratch::Impl& w_;

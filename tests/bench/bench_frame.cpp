@@ -17,6 +17,11 @@
 //     the path over the surface or through a cave), make_city (8 x 8 blocks
 //     of box buildings with parked cars, driven through at street level).
 //
+//   indoor/meshes[/ob:W], city/meshes[/ob:W]
+//     The same levels and paths with every static box a mesh of 12
+//     triangles (a cube, placed at the box's centre): the mesh layout's cost
+//     against the box layout's.
+//
 //   Counters of both kinds:
 //       median_us, p99_us  engine time per frame (FrameStats::time_us)
 //       vfc_median_us      plain frustum culling of the same frames (every
@@ -102,6 +107,7 @@
 
 #include <glm/common.hpp>
 
+#include "meshes.h"
 #include "scenes.h"
 #include "voxvis/generate.h"
 #include "voxvis/mesh.h"
@@ -128,7 +134,7 @@ struct Recording {
   std::vector<double> in_view;
 };
 
-enum class Path { Walkthrough, Indoor, Surface, Cave, City };
+enum class Path { Walkthrough, Indoor, Surface, Cave, City, IndoorMeshes, CityMeshes };
 
 /// The exactly visible set is the ray caster's at 1024 x 576 jittered rays
 /// (one per cell) on every 20th frame. The caster samples, so this is a
@@ -145,10 +151,18 @@ Recording record(Path which) {
     out.frames = make_walkthrough(out.scene, WalkthroughParams{});
     if (out.frames.size() >= 2) out.dt = out.frames[1].t - out.frames[0].t;
   } else {
-    test::ScenePath p = which == Path::Indoor  ? test::make_indoor_level(6, 3, 200, 7)
-                        : which == Path::City  ? test::make_city(8, 200, 5)
-                                               : test::make_voxel_world(64, 200, which == Path::Cave, 11);
+    const bool indoor = which == Path::Indoor || which == Path::IndoorMeshes;
+    const bool city = which == Path::City || which == Path::CityMeshes;
+    test::ScenePath p = indoor ? test::make_indoor_level(6, 3, 200, 7)
+                        : city ? test::make_city(8, 200, 5)
+                               : test::make_voxel_world(64, 200, which == Path::Cave, 11);
     out.scene = std::move(p.scene);
+    if (which == Path::IndoorMeshes || which == Path::CityMeshes) {
+      // The same layout with every box a mesh of 12 triangles.
+      for (ObjectDesc& o : out.scene.objects)
+        if (o.shape == Shape::Box && !o.dynamic)
+          o = test::mesh_object(o.id, test::cube_mesh(o.half_extent), o.center, Quat(1.0, 0.0, 0.0, 0.0), 1.0);
+    }
     for (std::size_t k = 0; k < p.cameras.size(); ++k) {
       FrameInput f;
       f.t = static_cast<double>(k) * out.dt;
@@ -813,7 +827,9 @@ void register_all() {
   const std::pair<const char*, Path> paths[] = {{"indoor", Path::Indoor},
                                                 {"voxel_world/surface", Path::Surface},
                                                 {"voxel_world/cave", Path::Cave},
-                                                {"city", Path::City}};
+                                                {"city", Path::City},
+                                                {"indoor/meshes", Path::IndoorMeshes},
+                                                {"city/meshes", Path::CityMeshes}};
   for (const auto& [name, which] : paths)
     for (int ob : widths)
       benchmark::RegisterBenchmark((name + suffix(ob)).c_str(), BM_Path, which, glm::ivec3(0), ob)
