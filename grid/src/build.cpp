@@ -14,6 +14,7 @@
 #include <glm/geometric.hpp>
 
 #include "numeric.h"
+#include "mesh_interior.h"
 #include "opaque_boxes.h"
 #include "scene_impl.h"
 #include "tri_box.h"
@@ -579,7 +580,8 @@ void build_static_masks(Scene::Impl& s) {
   for (int z = 0; z < s.res.z; ++z)
     for (int y = 0; y < s.res.y; ++y)
       for (int x = 0; x < s.res.x; ++x)
-        if (s.vflags[static_cast<std::size_t>(s.index(x, y, z))] & (Scene::Impl::kStaticIds | Scene::Impl::kStaticOpaque))
+        if (s.vflags[static_cast<std::size_t>(s.index(x, y, z))] &
+            (Scene::Impl::kStaticIds | Scene::Impl::kStaticOpaque | Scene::Impl::kMeshInside))
           s.static_mask[1][s.pyr.index(1, glm::ivec3(x, y, z) >> detail::kCellShift)] |= bit(glm::ivec3(x, y, z));
   for (int l = 1; l + 1 < s.pyr.levels; ++l) {
     const detail::IdLists& lists = s.static_lists[static_cast<std::size_t>(l)];
@@ -734,17 +736,104 @@ bool count_triangle_bricks(const Scene::Impl& s, const Obj& o, BuildMeter& meter
   return mesh_triangle_bricks(s, o, meter, [&](std::size_t, std::uint32_t) { ++*n; });
 }
 
-/// Pairs every mesh's triangles into quads (Obj::quads), once a mesh.
+/// The interiors of closed static meshes, with the buffer on: every voxel
+/// some closed mesh's triangles touch gets kMeshTouched (mesh_voxels, the
+/// exact triangle-box test grown by the rounding allowance); then every
+/// voxel of a closed mesh's range that OpenVDB puts inside and that no
+/// closed mesh touches gets kMeshInside (mesh_interior.h). Those voxels are
+/// covered with boxes appended to opaque_boxes and listed per brick
+/// (brick_mesh_boxes). Needs pair_mesh_triangles first (Obj::outward).
+Status build_mesh_interiors(Scene::Impl& s, BuildMeter& meter) {
+  std::vector<std::uint32_t> meshes;
+  for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
+    const Obj& o = s.objs[slot];
+    // Closed (pair_mesh_triangles) and enclosing a volume.
+    if (o.dynamic || o.shape != Shape::Mesh || o.outward == 0) continue;
+    meshes.push_back(slot);
+    if (!s.box_inside_grid(o.box_lo(), o.box_hi())) s.closed_mesh_beyond_grid = true;
+    if (!mesh_voxels(s, o, meter, [&](int, const glm::ivec3& v) {
+          s.vflags[static_cast<std::size_t>(s.index(v.x, v.y, v.z))] |= Scene::Impl::kMeshTouched;
+        }))
+      return build_cancelled();
+  }
+  bool any = false;
+  for (const std::uint32_t slot : meshes) {
+    const Obj& o = s.objs[slot];
+    const ObjectDesc d = o.mesh_desc();
+    std::vector<Vec3> g(o.mesh->vertices.size());
+    for (std::size_t i = 0; i < g.size(); ++i) g[i] = s.to_grid(place(d, o.mesh->vertices[i]));
+    const VoxBox range = s.touch_range(o.box_lo(), o.box_hi(), s.slop(max_abs(o.center) + max_abs(o.half)));
+    detail::inside_voxel_centres(g, *o.mesh, range, [&](int x, int y, int z) {
+      std::uint8_t& f = s.vflags[static_cast<std::size_t>(s.index(x, y, z))];
+      if (!(f & Scene::Impl::kMeshTouched)) {
+        f |= Scene::Impl::kMeshInside;
+        any = true;
+      }
+    });
+    const glm::ivec3 n = range.empty() ? glm::ivec3(0) : range.hi - range.lo + 1;
+    if (!meter.tick(static_cast<std::uint64_t>(n.x) * static_cast<std::uint64_t>(n.y) * static_cast<std::uint64_t>(n.z) +
+                    4 * o.mesh->triangles.size()))
+      return build_cancelled();
+  }
+  if (!any) return Status::Ok();
+  std::vector<detail::VoxBox> boxes;
+  std::vector<std::uint32_t> owner;
+  detail::cover_with_boxes(s.res, s.vflags, Scene::Impl::kMeshInside, kOpaqueBoxSide, &boxes, &owner);
+  const auto first = static_cast<std::uint32_t>(s.opaque_boxes.size());
+  s.opaque_boxes.insert(s.opaque_boxes.end(), boxes.begin(), boxes.end());
+  // Per brick, the boxes owning its interior voxels, each once.
+  detail::IdLists& lists = s.brick_mesh_boxes;
+  lists.offsets.assign(1, 0);
+  lists.ids.clear();
+  std::vector<std::uint32_t> mark(boxes.size(), ~0u);
+  const glm::ivec3 bres = s.pyr.res[1];
+  for (int bz = 0; bz < bres.z; ++bz)
+    for (int by = 0; by < bres.y; ++by)
+      for (int bx = 0; bx < bres.x; ++bx) {
+        const auto tag = static_cast<std::uint32_t>(lists.offsets.size() - 1);
+        const glm::ivec3 o = glm::ivec3(bx, by, bz) << detail::kBrickShift;
+        const glm::ivec3 end = glm::min(o + (1 << detail::kBrickShift), s.res);
+        for (int z = o.z; z < end.z; ++z)
+          for (int y = o.y; y < end.y; ++y)
+            for (int x = o.x; x < end.x; ++x) {
+              const std::uint32_t b = owner[static_cast<std::size_t>(s.index(x, y, z))];
+              if (b == detail::kNoBox || mark[b] == tag) continue;
+              mark[b] = tag;
+              lists.ids.push_back(first + b);
+            }
+        lists.offsets.push_back(static_cast<std::uint32_t>(lists.ids.size()));
+      }
+  return Status::Ok();
+}
+
+/// Pairs every mesh's triangles into quads (Obj::quads) and finds whether
+/// it is closed and which way it runs (Obj::outward), once a mesh.
 void pair_mesh_triangles(Scene::Impl& s, BuildMeter& meter) {
-  std::unordered_map<const Mesh*, std::shared_ptr<const detail::MeshQuads>> done;
+  struct Done {
+    std::shared_ptr<const detail::MeshQuads> quads;
+    std::int8_t outward = 0;
+  };
+  std::unordered_map<const Mesh*, Done> done;
   for (Obj& o : s.objs) {
     if (o.shape != Shape::Mesh) continue;
-    auto& q = done[o.mesh.get()];
-    if (!q) {
-      q = std::make_shared<const detail::MeshQuads>(detail::pair_triangles(*o.mesh));
-      meter.tick(4 * o.mesh->triangles.size() + 1);
+    auto [it, fresh] = done.try_emplace(o.mesh.get());
+    if (fresh) {
+      const Mesh& m = *o.mesh;
+      it->second.quads = std::make_shared<const detail::MeshQuads>(detail::pair_triangles(m));
+      if (detail::mesh_closed(m)) {
+        // Six times the signed volume (divergence theorem), about the
+        // vertices' centroid to keep the products small.
+        const Vec3 c = o.mesh_centroid;
+        double vol = 0.0;
+        for (const auto& t : m.triangles)
+          vol += glm::dot(m.vertices[t[0]] - c, glm::cross(m.vertices[t[1]] - c, m.vertices[t[2]] - c));
+        it->second.outward = vol > 0.0 ? 1 : vol < 0.0 ? -1 : 0;
+      }
+      meter.tick(8 * m.triangles.size() + 1);
     }
-    o.quads = q;
+    o.quads = it->second.quads;
+    o.outward = it->second.outward;
+    if (!o.dynamic && o.outward != 0) s.any_closed_mesh = true;
   }
 }
 
@@ -844,15 +933,17 @@ Status Scene::create(const SceneDesc& desc, const SceneOptions& options, std::un
         if (s.in_one_ball(first, n, x, y, z)) s.vflags[i] |= Impl::kInOneBall;
       }
     }
-  if (s.options.occlusion_buffer > 0)
+  if (s.options.occlusion_buffer > 0) {
     detail::cover_with_boxes(s.res, s.vflags, Impl::kStaticOpaque, kOpaqueBoxSide, &s.opaque_boxes,
                              &s.opaque_owner);
+    pair_mesh_triangles(s, meter);
+    if (Status st = build_mesh_interiors(s, meter); !st) return st;
+  }
   // The cell traversal's summaries: only the buffer's traversal reads them.
   const bool cells = s.options.occlusion_buffer > 0;
   if (cells) {
     build_static_masks(s);
     build_brick_lists(s);
-    pair_mesh_triangles(s, meter);
     if (Status st = build_brick_triangles(s, meter); !st) return st;
   }
 

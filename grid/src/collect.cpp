@@ -70,6 +70,8 @@ bool make_frame_geometry(const Scene::Impl& s, const WorldFrustum& wf, FrameGeom
   g.lf = make_local_frustum(wf, e, spec.voxel_size, far_eff, g.tol);
   g.depth_tol = 4.0 * g.tol * vmax + 1e-9 * world_scale;
   g.vs = spec.voxel_size;
+  g.outside_meshes = s.any_closed_mesh && mesh_tip_clear(s, wf);
+  g.mesh_interiors = g.outside_meshes && !s.brick_mesh_boxes.ids.empty();
   return true;
 }
 
@@ -137,7 +139,34 @@ void Collector::render_opaque_box_at(std::uint32_t b) {
   if (w_.ob.render_box(lo, hi)) ++st_.ob_occluders;
 }
 
+bool mesh_tip_clear(const Scene::Impl& s, const WorldFrustum& wf) {
+  Vec3 lo = wf.eye, hi = wf.eye;
+  for (int k = 0; k < 4; ++k) {
+    const Vec3 c = wf.eye + wf.near * (wf.f + ((k & 1) ? 1.0 : -1.0) * wf.tan_x * wf.r + ((k & 2) ? 1.0 : -1.0) * wf.tan_y * wf.u);
+    lo = glm::min(lo, c);
+    hi = glm::max(hi, c);
+  }
+  if (!std::isfinite(lo.x + lo.y + lo.z + hi.x + hi.y + hi.z)) return false;
+  const double mag = max_abs(lo) + max_abs(hi);
+  // Grown by more than the rounding of the corners (a few ulps of mag).
+  const double grow = 1e-9 * mag + s.slop(mag);
+  if (s.closed_mesh_beyond_grid && !s.box_inside_grid(lo - grow, hi + grow)) return false;
+  const VoxBox vb = s.touch_range(lo - grow, hi + grow, s.slop(mag));
+  if (vb.empty()) return true;  // Wholly beyond the grid, and no closed mesh is.
+  const glm::ivec3 n = vb.hi - vb.lo + 1;
+  if (std::int64_t{n.x} * n.y * n.z > 4096) return false;
+  for (int z = vb.lo.z; z <= vb.hi.z; ++z)
+    for (int y = vb.lo.y; y <= vb.hi.y; ++y)
+      for (int x = vb.lo.x; x <= vb.hi.x; ++x)
+        if (s.vflags[static_cast<std::size_t>(s.index(x, y, z))] & (Scene::Impl::kMeshInside | Scene::Impl::kMeshTouched))
+          return false;
+  return true;
+}
+
 void Collector::render_brick_triangles(std::size_t bi) {
+  if (g_.mesh_interiors)
+    for (const std::uint32_t* p = s_.brick_mesh_boxes.begin(bi); p != s_.brick_mesh_boxes.end(bi); ++p)
+      render_opaque_box_at(*p);
   if (s_.brick_tri_offsets.empty()) return;
   const std::uint32_t first = s_.brick_tri_offsets[bi], last = s_.brick_tri_offsets[bi + 1];
   if (first == last) return;
@@ -171,6 +200,17 @@ void Collector::render_mesh(const Obj& o) {
 void Collector::render_triangle_of(const Obj& o, const Vec3* p, std::uint32_t t) {
   const double err = o.mesh_allowance();
   const std::uint32_t partner = o.quads->partner[t];
+  if (o.outward != 0 && g_.outside_meshes) {
+    // A closed mesh seen from outside: a ray meeting a triangle from behind
+    // (its outer side facing away) has met the mesh before. Leaving an
+    // occluder out is conservative whatever the eye.
+    const Vec3& eye = w_.ob.eye();
+    auto facing_away = [&](std::uint32_t k) {
+      const auto& a = o.mesh->triangles[k];
+      return o.outward * glm::dot(glm::cross(p[a[1]] - p[a[0]], p[a[2]] - p[a[0]]), p[a[0]] - eye) > 0.0;
+    };
+    if (facing_away(t) && (partner == MeshQuads::kNone || facing_away(partner))) return;
+  }
   bool raised = false;
   if (partner != MeshQuads::kNone) {
     const auto& q = o.quads->quad[t];

@@ -144,6 +144,7 @@ class OcclusionBuffer {
   void begin(const WorldFrustum& wf, int width);
   void end() { w_ = 0; }
   bool on() const { return w_ > 0; }
+  const Vec3& eye() const { return eye_; }
   int width() const { return w_; }
   int height() const { return h_; }
 

@@ -123,6 +123,10 @@ struct Obj {
   /// With the buffer on: its triangles paired into quads (mesh_pairs.h),
   /// shared by the objects of one mesh.
   std::shared_ptr<const MeshQuads> quads;
+  /// With the buffer on, for a closed mesh (mesh_interior.h): +1 when its
+  /// triangles run counter-clockwise seen from outside (its signed volume
+  /// is positive), -1 the other way; 0 for an open mesh.
+  std::int8_t outward = 0;
 
   Vec3 box_lo() const { return center - half; }
   Vec3 box_hi() const { return center + half; }
@@ -294,6 +298,11 @@ struct Scene::Impl {
   /// A static opaque voxel wholly inside one static ball (read when the
   /// opaque boxes are chosen: build.cpp, redundant_boxes).
   static constexpr std::uint8_t kInOneBall = 16;
+  /// With the buffer on: a voxel wholly inside a closed static mesh (no
+  /// triangle touches it, OpenVDB's level set puts its centre inside), and
+  /// a voxel some closed static mesh's triangles touch (build.cpp,
+  /// build_mesh_interiors; docs/design.md, "Meshes").
+  static constexpr std::uint8_t kMeshInside = 32, kMeshTouched = 64;
   std::vector<std::uint8_t> vflags;
   detail::Pyramid pyr;
   /// Per level, the static objects stored there (level 0: voxels).
@@ -324,6 +333,15 @@ struct Scene::Impl {
   std::vector<std::uint32_t> brick_tri_offsets;
   std::vector<detail::TriRef> brick_tris;
   std::uint32_t static_triangles = 0;  ///< Triangles of static meshes, all.
+  /// With the buffer on, per brick: the boxes of kMeshInside voxels
+  /// (indices into opaque_boxes, after the static ones) owning its voxels,
+  /// drawn only in frames whose eye and near plane lie outside every closed
+  /// mesh (FrameGeometry::mesh_interiors).
+  detail::IdLists brick_mesh_boxes;
+  /// A closed static mesh reaches beyond the grid box (then an eye beyond
+  /// it may be inside one).
+  bool closed_mesh_beyond_grid = false;
+  bool any_closed_mesh = false;  ///< A static mesh is closed (buffer on).
 
   // Dynamic layer (allocated only when the scene has dynamic objects).
   glm::ivec3 bricks_res{0};

@@ -11,6 +11,7 @@ endif()
 
 find_package(glm REQUIRED)
 find_package(nlohmann_json 3.10 REQUIRED)
+include(cmake/openvdb.cmake)  # voxvis::grid's closed-mesh interiors.
 
 # Everything compiled here carries libFuzzer's coverage instrumentation and is
 # checked by AddressSanitizer (leaks included) and UBSan; UBSan stops at its
