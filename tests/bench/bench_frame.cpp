@@ -83,6 +83,11 @@
 //     tick_median_ms, tick_p99_ms, busy (engine time over both workers' wall
 //     time), and per tick the TBVs renewed, created and revealed.
 //
+//   mesh_move/triangles:5120
+//     64 dynamic meshes (icospheres of 5,120 triangles, 6 voxels across)
+//     each moved by a voxel and turned per batch, no viewer: us_per_move
+//     (BM_MeshMove).
+//
 //   mesh_build/triangles:N
 //     One static mesh of N triangles (a terrain over 256 x 64 x 256 voxels):
 //     Scene::estimate and Scene::create's time, the voxels holding it, and a
@@ -820,6 +825,53 @@ void BM_MeshBuild(benchmark::State& state, int triangles) {
   state.counters["first_frame_us"] = frame_us;
 }
 
+/// Moves of dynamic meshes of about `triangles` triangles (an icosphere of
+/// radius 3 voxels): 64 of them in a 128^3 grid, each moved by one voxel per
+/// batch, back and forth, turning as it goes, with no viewer (so every one
+/// stays discretized: the costly case, no TBV absorbs the move).
+void BM_MeshMove(benchmark::State& state, int levels) {
+  const std::shared_ptr<const Mesh> mesh = test::icosphere(levels);
+  SceneDesc desc;
+  desc.bounds_min = Vec3(0.0);
+  desc.bounds_max = Vec3(128.0);
+  desc.grid = glm::ivec3(128);
+  for (int k = 0; k < 64; ++k) {
+    ObjectDesc o = test::mesh_object(static_cast<ObjectId>(k + 1), mesh,
+                                     Vec3(12.0 + 14.0 * (k % 8), 64.0, 12.0 + 14.0 * (k / 8)), Quat(1.0, 0.0, 0.0, 0.0),
+                                     3.0);
+    o.dynamic = true;
+    o.max_speed = 100.0;
+    desc.objects.push_back(o);
+  }
+  std::unique_ptr<Scene> scene;
+  if (!Scene::create(desc, {}, &scene).ok) {
+    state.SkipWithError("create failed");
+    return;
+  }
+  std::vector<Move> moves(desc.objects.size());
+  double t = 0.0;
+  int step = 0;
+  for (auto _ : state) {
+    t += 0.05;
+    ++step;
+    for (std::size_t k = 0; k < moves.size(); ++k) {
+      moves[k].id = desc.objects[k].id;
+      moves[k].center = desc.objects[k].center + Vec3((step & 1) ? 1.0 : 0.0, 0.0, 0.0);
+      moves[k].has_rotation = true;
+      moves[k].rotation = test::rotation_about(Vec3(0.0, 1.0, 0.0), 0.1 * step);
+    }
+    MoveReport report;
+    if (!scene->apply_moves(t, moves, &report).ok) {
+      state.SkipWithError("apply_moves failed");
+      return;
+    }
+  }
+  state.counters["triangles"] = static_cast<double>(mesh->triangles.size());
+  state.counters["us_per_move"] =
+      benchmark::Counter(static_cast<double>(moves.size()), benchmark::Counter::kIsIterationInvariantRate |
+                                                                benchmark::Counter::kInvert);
+}
+
 void register_all() {
   // The occlusion buffer's widths (SceneOptions::occlusion_buffer), 0 = off.
   const int widths[] = {0, 64, 128, 256, 512};
@@ -886,6 +938,7 @@ void register_all() {
       ->Iterations(3)
       ->UseRealTime()
       ->Unit(benchmark::kMillisecond);
+  benchmark::RegisterBenchmark("mesh_move/triangles:5120", BM_MeshMove, 4)->Unit(benchmark::kMicrosecond);
   for (int n : {100000, 1000000})
     benchmark::RegisterBenchmark(("mesh_build/triangles:" + std::to_string(n)).c_str(), BM_MeshBuild, n)
         ->Iterations(1)
