@@ -19,6 +19,8 @@
 #include "scene_impl.h"
 #include "tri_box.h"
 
+#include <map>
+
 namespace voxvis {
 
 using detail::Obj;
@@ -485,7 +487,13 @@ Status count_cost(const Scene::Impl& s, BuildMeter& meter, SceneCost* cost, Leve
     const Obj& o = s.objs[slot];
     if (o.dynamic) {
       dyn += dynamic_entries(s, o);
-      if (o.shape == Shape::Mesh && buffer) mesh.bytes += 20 * o.mesh->triangles.size();
+      if (o.shape == Shape::Mesh && buffer) {
+        // The quad pairing, and the interior's cubes and boxes (if closed).
+        const double side = std::fmin(s.spec.voxel_size.x, std::fmin(s.spec.voxel_size.y, s.spec.voxel_size.z));
+        const glm::ivec3 n = detail::model_interior_cubes(*o.mesh, side / o.mesh_scale);
+        const std::uint64_t cubes = std::uint64_t(n.x) * std::uint64_t(n.y) * std::uint64_t(n.z);
+        mesh.bytes += 20 * o.mesh->triangles.size() + cubes + 8 * cubes / 4 + 256;
+      }
       if (o.shape == Shape::Mesh && buffer && o.mesh->vertices.size() > widest) {
         mesh.scratch += 24 * (o.mesh->vertices.size() - widest);
         widest = o.mesh->vertices.size();
@@ -834,6 +842,22 @@ void pair_mesh_triangles(Scene::Impl& s, BuildMeter& meter) {
     o.quads = it->second.quads;
     o.outward = it->second.outward;
     if (!o.dynamic && o.outward != 0) s.any_closed_mesh = true;
+  }
+  // Closed dynamic meshes' interiors in their own frames, at cubes of the
+  // grid's least voxel side (in model units), once per mesh and side.
+  std::map<std::pair<const Mesh*, double>, std::shared_ptr<const detail::ModelInterior>> interiors;
+  const double side = std::fmin(s.spec.voxel_size.x, std::fmin(s.spec.voxel_size.y, s.spec.voxel_size.z));
+  for (Obj& o : s.objs) {
+    if (!o.dynamic || o.shape != Shape::Mesh || o.outward == 0) continue;
+    const double h = side / o.mesh_scale;
+    auto& in = interiors[{o.mesh.get(), h}];
+    if (!in) {
+      double model = 0.0;
+      for (const Vec3& v : o.mesh->vertices) model = std::fmax(model, max_abs(v));
+      in = std::make_shared<const detail::ModelInterior>(detail::model_interior(*o.mesh, h, 1e-9 * model));
+      meter.tick(8 * o.mesh->triangles.size() + 1);
+    }
+    if (!in->boxes.empty()) o.interior = in;
   }
 }
 

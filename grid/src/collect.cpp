@@ -190,11 +190,51 @@ void Collector::render_mesh(const Obj& o) {
   std::vector<Vec3>& p = w_.placed;
   p.resize(mesh.vertices.size());
   for (std::size_t i = 0; i < p.size(); ++i) p[i] = place(d, mesh.vertices[i]);
+  if (o.interior && model_tip_clear(o)) {
+    // Its interior, as oriented boxes where it is (docs/design.md, "Meshes").
+    const Quat q = o.mesh_rotation;
+    const Vec3 axes[3] = {q * Vec3(1, 0, 0), q * Vec3(0, 1, 0), q * Vec3(0, 0, 1)};
+    const double err = 2.0 * o.mesh_allowance();
+    for (const ModelInterior::Box& b : o.interior->boxes)
+      if (w_.ob.render_oriented_box(place(d, b.center), axes, o.mesh_scale * b.half, err)) ++st_.ob_occluders;
+  }
   const std::uint32_t n = static_cast<std::uint32_t>(mesh.triangles.size());
   for (std::uint32_t t = 0; t < n; ++t) {
     const std::uint32_t partner = o.quads->partner[t];
     if (partner == MeshQuads::kNone || partner > t) render_triangle_of(o, p.data(), t);
   }
+}
+
+bool Collector::model_tip_clear(const Obj& o) const {
+  // The frustum's tip (the eye and the near rectangle) in the mesh's frame:
+  // model = rotate(q^-1, world - origin) / scale, its cubes grown by one for
+  // the rounding of that map.
+  const ModelInterior& in = *o.interior;
+  const Quat qi = glm::conjugate(o.mesh_rotation);
+  Vec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
+  for (int k = 0; k < 5; ++k) {
+    const Vec3 w = k == 4 ? wf_.eye
+                          : wf_.eye + wf_.near * (wf_.f + ((k & 1) ? 1.0 : -1.0) * wf_.tan_x * wf_.r +
+                                                 ((k & 2) ? 1.0 : -1.0) * wf_.tan_y * wf_.u);
+    const Vec3 m = (qi * (w - o.mesh_origin)) / o.mesh_scale;
+    lo = glm::min(lo, m);
+    hi = glm::max(hi, m);
+  }
+  const Vec3 glo = (lo - in.lo) / in.h - 1.0, ghi = (hi - in.lo) / in.h + 1.0;
+  if (!std::isfinite(glo.x + glo.y + glo.z + ghi.x + ghi.y + ghi.z)) return false;
+  glm::ivec3 a, b;
+  for (int k = 0; k < 3; ++k) {
+    // Beyond the cubes is beyond the mesh's box: outside it.
+    if (ghi[k] < 0.0 || glo[k] > in.n[k]) return true;
+    a[k] = static_cast<int>(std::fmax(std::floor(glo[k]), 0.0));
+    b[k] = static_cast<int>(std::fmin(std::floor(ghi[k]), in.n[k] - 1.0));
+  }
+  if (std::int64_t{b.x - a.x + 1} * (b.y - a.y + 1) * (b.z - a.z + 1) > 4096) return false;
+  for (int z = a.z; z <= b.z; ++z)
+    for (int y = a.y; y <= b.y; ++y)
+      for (int x = a.x; x <= b.x; ++x)
+        if (in.at(x, y, z) != 0) return false;
+  return true;
 }
 
 void Collector::render_triangle_of(const Obj& o, const Vec3* p, std::uint32_t t) {

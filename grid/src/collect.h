@@ -108,8 +108,13 @@ class Collector {
   /// neighbours: then no point of o is visible though it touches voxels in
   /// view (a block just under the ground touches the air above it).
   bool own_voxels_hidden(const Obj& o) const;
-  /// Draws every triangle of dynamic mesh o at its current placement.
+  /// Draws every triangle of dynamic mesh o at its current placement, and
+  /// its interior (Obj::interior) when model_tip_clear.
   void render_mesh(const Obj& o);
+  /// Whether the frustum's tip lies wholly outside closed dynamic mesh o,
+  /// in its own frame: in cubes of its interior's grid neither touched nor
+  /// inside, or beyond that grid (then beyond the mesh's box).
+  bool model_tip_clear(const Obj& o) const;
   /// Draws triangle t of mesh o (placed vertices p), with its partner as
   /// one quad when it has one (mesh_pairs.h).
   void render_triangle_of(const Obj& o, const Vec3* p, std::uint32_t t);

@@ -1,9 +1,16 @@
 // mesh_interior.cpp — see mesh_interior.h.
 #include "mesh_interior.h"
 
+#include "opaque_boxes.h"
+#include "tri_box.h"
+
 #include <cstdint>
 #include <mutex>
+#include <limits>
 #include <unordered_map>
+
+#include <algorithm>
+#include <cmath>
 
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/MeshToVolume.h>
@@ -44,16 +51,84 @@ bool mesh_closed(const Mesh& mesh) {
   return true;
 }
 
-void inside_voxel_centres(const std::vector<Vec3>& g, const Mesh& mesh, const VoxBox& range,
-                          const std::function<void(int, int, int)>& emit) {
-  if (range.empty()) return;
+namespace {
+
+openvdb::FloatGrid::Ptr level_set(const std::vector<Vec3>& g, const Mesh& mesh) {
   static std::once_flag init;
   std::call_once(init, [] { openvdb::initialize(); });
   const IndexSpaceMesh adapter{g, mesh};
   const openvdb::math::Transform::Ptr xform = openvdb::math::Transform::createLinearTransform(1.0);
   // A narrow band of three voxels each side (the default): the sign of
   // every value, inside the band or not, is the region's.
-  const openvdb::FloatGrid::Ptr sdf = openvdb::tools::meshToVolume<openvdb::FloatGrid>(adapter, *xform, 3.0f, 3.0f);
+  return openvdb::tools::meshToVolume<openvdb::FloatGrid>(adapter, *xform, 3.0f, 3.0f);
+}
+
+/// The layout of model_interior: false when the mesh or h cannot have one.
+bool layout(const Mesh& mesh, double* h, Vec3* lo_out, glm::ivec3* n) {
+  Vec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
+  for (const Vec3& v : mesh.vertices) lo = glm::min(lo, v), hi = glm::max(hi, v);
+  const double extent = std::fmax(hi.x - lo.x, std::fmax(hi.y - lo.y, hi.z - lo.z));
+  if (!(extent > 0.0) || !(*h > 0.0) || !std::isfinite(extent / *h)) return false;
+  *h = std::fmax(*h, extent / 126.0);
+  *lo_out = lo - *h;
+  for (int a = 0; a < 3; ++a) (*n)[a] = static_cast<int>(std::ceil((hi[a] - lo[a]) / *h)) + 2;
+  return true;
+}
+
+}  // namespace
+
+glm::ivec3 model_interior_cubes(const Mesh& mesh, double h) {
+  Vec3 lo;
+  glm::ivec3 n(0);
+  return layout(mesh, &h, &lo, &n) ? n : glm::ivec3(0);
+}
+
+ModelInterior model_interior(const Mesh& mesh, double h, double grow) {
+  ModelInterior out;
+  if (!layout(mesh, &h, &out.lo, &out.n)) return out;
+  out.h = h;
+  out.flags.assign(static_cast<std::size_t>(out.n.x) * out.n.y * out.n.z, 0);
+  // The mesh in cube units (cube i spans [i, i+1]).
+  std::vector<Vec3> g(mesh.vertices.size());
+  for (std::size_t i = 0; i < g.size(); ++i) g[i] = (mesh.vertices[i] - out.lo) / h;
+  const Vec3 half(0.5 + grow / h + 1e-9);
+  for (const auto& t : mesh.triangles) {
+    const Vec3 &a = g[t[0]], &b = g[t[1]], &c = g[t[2]];
+    const Vec3 tlo = glm::min(a, glm::min(b, c)) - (half - 0.5), thi = glm::max(a, glm::max(b, c)) + (half - 0.5);
+    glm::ivec3 v0, v1;
+    for (int k = 0; k < 3; ++k) {
+      v0[k] = std::clamp(static_cast<int>(std::ceil(tlo[k])) - 1, 0, out.n[k] - 1);
+      v1[k] = std::clamp(static_cast<int>(std::floor(thi[k])), 0, out.n[k] - 1);
+    }
+    for (int z = v0.z; z <= v1.z; ++z)
+      for (int y = v0.y; y <= v1.y; ++y)
+        for (int x = v0.x; x <= v1.x; ++x)
+          if (triangle_meets_box(a, b, c, Vec3(x + 0.5, y + 0.5, z + 0.5), half))
+            out.flags[static_cast<std::size_t>(x + out.n.x * (y + static_cast<std::size_t>(out.n.y) * z))] |=
+                ModelInterior::kTouched;
+  }
+  const openvdb::FloatGrid::Ptr sdf = level_set(g, mesh);
+  const openvdb::FloatGrid::ConstAccessor acc = sdf->getConstAccessor();
+  for (int z = 0; z < out.n.z; ++z)
+    for (int y = 0; y < out.n.y; ++y)
+      for (int x = 0; x < out.n.x; ++x) {
+        std::uint8_t& f = out.flags[static_cast<std::size_t>(x + out.n.x * (y + static_cast<std::size_t>(out.n.y) * z))];
+        if (!(f & ModelInterior::kTouched) && acc.getValue(openvdb::Coord(x, y, z)) < 0.0f) f |= ModelInterior::kInside;
+      }
+  std::vector<VoxBox> boxes;
+  std::vector<std::uint32_t> owner;
+  cover_with_boxes(out.n, out.flags, ModelInterior::kInside, 16, &boxes, &owner);
+  for (const VoxBox& b : boxes) {
+    const Vec3 blo = out.lo + Vec3(b.lo) * h, bhi = out.lo + Vec3(b.hi + 1) * h;
+    out.boxes.push_back({0.5 * (blo + bhi), 0.5 * (bhi - blo)});
+  }
+  return out;
+}
+
+void inside_voxel_centres(const std::vector<Vec3>& g, const Mesh& mesh, const VoxBox& range,
+                          const std::function<void(int, int, int)>& emit) {
+  if (range.empty()) return;
+  const openvdb::FloatGrid::Ptr sdf = level_set(g, mesh);
   const openvdb::FloatGrid::ConstAccessor acc = sdf->getConstAccessor();
   for (int z = range.lo.z; z <= range.hi.z; ++z)
     for (int y = range.lo.y; y <= range.hi.y; ++y)

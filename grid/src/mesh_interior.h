@@ -13,8 +13,11 @@
 // the engine's only use of OpenVDB.
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <vector>
+
+#include <glm/vec3.hpp>
 
 #include "voxbox.h"
 #include "voxvis/types.h"
@@ -31,5 +34,34 @@ bool mesh_closed(const Mesh& mesh);
 /// (voxel size 1, centres at the grid's voxel centres) puts inside.
 void inside_voxel_centres(const std::vector<Vec3>& g, const Mesh& mesh, const VoxBox& range,
                           const std::function<void(int, int, int)>& emit);
+
+/// A dynamic closed mesh's interior in its own frame (model units), built
+/// once: a grid of cubes of side `h` over the mesh's box grown by a cube,
+/// each flagged kTouched (a triangle meets it, grown by `grow`) or kInside
+/// (not touched, its centre enclosed by OpenVDB's level set), and the
+/// inside cubes covered by boxes (opaque_boxes.h), drawn into the buffer at
+/// the mesh's placement as oriented boxes.
+struct ModelInterior {
+  static constexpr std::uint8_t kTouched = 1, kInside = 2;
+  struct Box {
+    Vec3 center, half;  ///< Model units.
+  };
+  Vec3 lo{0.0};              ///< Least corner of cube (0, 0, 0), model units.
+  double h = 1.0;            ///< Side of a cube, model units.
+  glm::ivec3 n{0};           ///< Cubes along each axis.
+  std::vector<std::uint8_t> flags;  ///< x fastest.
+  std::vector<Box> boxes;
+  std::uint8_t at(int x, int y, int z) const {
+    return flags[static_cast<std::size_t>(x + n.x * (y + static_cast<std::size_t>(n.y) * z))];
+  }
+};
+
+/// The cubes model_interior(mesh, h, ...) lays out along each axis.
+glm::ivec3 model_interior_cubes(const Mesh& mesh, double h);
+
+/// The interior of closed mesh `mesh` at cubes of side about `h` (coarser
+/// when the mesh would need more than 128 along an axis), triangles tested
+/// against cubes grown by `grow` (model units).
+ModelInterior model_interior(const Mesh& mesh, double h, double grow);
 
 }  // namespace voxvis::detail

@@ -499,43 +499,67 @@ bool OcclusionBuffer::render_sphere(const Vec3& c, double radius) {
 
 bool OcclusionBuffer::render_box(const Vec3& lo, const Vec3& hi) {
   if (!on()) return false;
+  static const Vec3 kAxes[3] = {Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(0, 0, 1)};
   const double mag = max_abs(eye_) + max_abs(lo) + max_abs(hi);
   const double delta = 1e-9 * mag;
   const Vec3 L = lo + delta - eye_, H = hi - delta - eye_;
+  const Vec3 gl = lo - delta - eye_, gh = hi + delta - eye_;
+  return render_box_frame(kAxes, L, H, gl, gh, mag);
+}
+
+bool OcclusionBuffer::render_oriented_box(const Vec3& center, const Vec3 axes[3], const Vec3& half, double err) {
+  if (!on()) return false;
+  const Vec3 c = center - eye_;
+  const double mag = max_abs(eye_) + max_abs(center) + std::fmax(half.x, std::fmax(half.y, half.z));
+  // The box's coordinates relative to the eye along its axes, each good to
+  // a few eps of mag (and the axes' own rounding, far below the shrink).
+  const double delta = 1e-9 * mag + err;
+  Vec3 L, H, gl, gh;
+  for (int a = 0; a < 3; ++a) {
+    const double m = glm::dot(axes[a], c);
+    L[a] = m - half[a] + delta, H[a] = m + half[a] - delta;
+    gl[a] = m - half[a] - delta, gh[a] = m + half[a] + delta;
+  }
+  return render_box_frame(axes, L, H, gl, gh, mag);
+}
+
+bool OcclusionBuffer::render_box_frame(const Vec3 axes[3], const Vec3& L, const Vec3& H, const Vec3& gl, const Vec3& gh,
+                                       double mag) {
   if (!(L.x < H.x && L.y < H.y && L.z < H.z)) return false;  // Too thin to trust.
+  // The view's directions in the box's frame (exact for the world's axes).
+  const Vec3 f(glm::dot(f_, axes[0]), glm::dot(f_, axes[1]), glm::dot(f_, axes[2]));
+  const Vec3 rr(glm::dot(r_, axes[0]), glm::dot(r_, axes[1]), glm::dot(r_, axes[2]));
+  const Vec3 uu(glm::dot(u_, axes[0]), glm::dot(u_, axes[1]), glm::dot(u_, axes[2]));
   const Vec3 size = H - L;
-  double zmin = glm::dot(f_, L);
-  for (int a = 0; a < 3; ++a) zmin += std::fmin(0.0, f_[a] * size[a]);
-  double zmax = glm::dot(f_, L);
-  for (int a = 0; a < 3; ++a) zmax += std::fmax(0.0, f_[a] * size[a]);
+  double zmin = glm::dot(f, L);
+  for (int a = 0; a < 3; ++a) zmin += std::fmin(0.0, f[a] * size[a]);
+  double zmax = glm::dot(f, L);
+  for (int a = 0; a < 3; ++a) zmax += std::fmax(0.0, f[a] * size[a]);
   // Only the part beyond the near plane occludes (the ray caster clips
   // objects there); a box around the eye writes nothing.
   if (!(zmax > near_)) return false;
-  {
-    const Vec3 gl = lo - delta - eye_, gh = hi + delta - eye_;
-    if (gl.x <= 0.0 && gh.x >= 0.0 && gl.y <= 0.0 && gh.y >= 0.0 && gl.z <= 0.0 && gh.z >= 0.0) return false;
-  }
+  if (gl.x <= 0.0 && gh.x >= 0.0 && gl.y <= 0.0 && gh.y >= 0.0 && gl.z <= 0.0 && gh.z >= 0.0) return false;
   const bool clip = zmin < near_ + 1e-9 * mag;
   // Image range of the part beyond the near plane: its corners there and
   // where its edges cross the plane.
   double x0 = kInf, x1 = -kInf, y0 = kInf, y1 = -kInf;
   auto take = [&](const Vec3& p) {
-    const double z = glm::dot(f_, p);
+    const double z = glm::dot(f, p);
     const double iz = 1.0 / z;  // The range only limits the pixels visited.
-    const double x = glm::dot(r_, p) * iz * inv_tan_x_, y = glm::dot(u_, p) * iz * inv_tan_y_;
+    const double x = glm::dot(rr, p) * iz * inv_tan_x_, y = glm::dot(uu, p) * iz * inv_tan_y_;
     x0 = std::fmin(x0, x), x1 = std::fmax(x1, x);
     y0 = std::fmin(y0, y), y1 = std::fmax(y1, y);
   };
   for (int k = 0; k < 8; ++k) {
     const Vec3 p{(k & 1) ? H.x : L.x, (k & 2) ? H.y : L.y, (k & 4) ? H.z : L.z};
-    const double z = glm::dot(f_, p);
+    const double z = glm::dot(f, p);
     if (z >= near_) {
       take(p);
     } else {
       for (int bit = 1; bit < 8; bit <<= 1) {
         const int k2 = k ^ bit;
         const Vec3 q{(k2 & 1) ? H.x : L.x, (k2 & 2) ? H.y : L.y, (k2 & 4) ? H.z : L.z};
-        const double zq = glm::dot(f_, q);
+        const double zq = glm::dot(f, q);
         if (zq > near_) take(p + (q - p) * ((near_ - z) / (zq - z)));
       }
     }
@@ -565,8 +589,7 @@ bool OcclusionBuffer::render_box(const Vec3& lo, const Vec3& hi) {
   double least_face = kInf;
   const double exit_cap = 1.0 / (near_ * (1.0 + kDepthSlack) + 1e-9 * mag);
   for (int a = 0; a < 3; ++a) {
-    Vec3 e(0.0);
-    e[a] = 1.0;
+    const Vec3& e = axes[a];  // Its coordinate along the axis is e·(p - eye).
     if (L[a] > 0.0 || H[a] < 0.0) {
       const double P = L[a] > 0.0 ? L[a] : H[a], Q = L[a] > 0.0 ? H[a] : L[a];
       own_exit[n_in] = n_out;

@@ -152,6 +152,12 @@ class OcclusionBuffer {
   /// it raised any pixel's bound.
   bool render_sphere(const Vec3& center, double radius);
   bool render_box(const Vec3& lo, const Vec3& hi);
+  /// Renders the box of half extents `half` about `center` along the unit,
+  /// orthogonal `axes` (world units) as an occluder, as render_box does an
+  /// axis-aligned one (the slab test in the box's frame: a ray's coordinate
+  /// along an axis is linear in it). `err` bounds the error of the centre
+  /// and the half extents (world units).
+  bool render_oriented_box(const Vec3& center, const Vec3 axes[3], const Vec3& half, double err = 0.0);
   /// Renders a triangle (world units) as an occluder: the part of it
   /// beyond the near plane, a planar convex polygon of at most four
   /// vertices, shrunk by its rounding allowance, at its plane's depth
@@ -225,6 +231,10 @@ class OcclusionBuffer {
   /// shrunk first by the rounding allowance (`err`: the vertices' own
   /// error, world units; `mag`: the magnitude of the coordinates).
   bool fill_polygon(Vec3* q, int nq, const PixelAffine* planes, int np, double depth_err, double mag, double err);
+  /// Renders the box {p : L <= axes[a]·(p - eye) <= H} (shrunk by its
+  /// allowance already; gl, gh: grown by it, for the eye-inside test);
+  /// `mag`: the magnitude of the coordinates.
+  bool render_box_frame(const Vec3 axes[3], const Vec3& L, const Vec3& H, const Vec3& gl, const Vec3& gh, double mag);
   /// Renders a disc (centre relative to the eye, unit normal, radius) as an
   /// inscribed polygon at its plane's depth; w_max and slack as in
   /// ConvexOccluder.

@@ -33,6 +33,7 @@
 #include <vector>
 
 #include "cells.h"
+#include "mesh_interior.h"
 #include "mesh_pairs.h"
 #include "occlusion_buffer.h"
 #include "voxbox.h"
@@ -127,6 +128,9 @@ struct Obj {
   /// triangles run counter-clockwise seen from outside (its signed volume
   /// is positive), -1 the other way; 0 for an open mesh.
   std::int8_t outward = 0;
+  /// With the buffer on, for a closed dynamic mesh: its interior in its own
+  /// frame, drawn as oriented boxes where it is (mesh_interior.h).
+  std::shared_ptr<const ModelInterior> interior;
 
   Vec3 box_lo() const { return center - half; }
   Vec3 box_hi() const { return center + half; }

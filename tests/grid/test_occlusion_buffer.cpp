@@ -269,14 +269,27 @@ int check_written_bounds(double scale, bool tiny_near, std::uint64_t seed) {
                                            rng.in_box(Vec3(-0.5), Vec3(0.5)) * scale
                                      : cam.eye + glm::normalize(cam.dir) * rng.uniform(1.0, 20.0) * scale +
                                            rng.in_box(Vec3(-3), Vec3(3)) * scale;
-    const int kind = rng.uniform_int(0, 3);
+    const int kind = rng.uniform_int(0, 4);
     Vec3 tri[4];
+    Vec3 axes[3];
     if (kind == 0) {
       o = sphere(1, at, rng.log_uniform(0.05, 5.0) * scale);
       ob.render_sphere(o.center, o.radius);
     } else if (kind == 1) {
       o = box_around(1, at, rng.in_box(Vec3(0.05), Vec3(4.0)) * scale);
       ob.render_box(o.center - o.half_extent, o.center + o.half_extent);
+    } else if (kind == 4) {
+      // A box turned about a random axis: drawn along its own axes; the
+      // rays are tested in its frame (an axis-aligned box there).
+      const Quat q = glm::normalize(Quat(rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0),
+                                         rng.uniform(-1.0, 1.0)));
+      for (int a = 0; a < 3; ++a) {
+        Vec3 e(0.0);
+        e[a] = 1.0;
+        axes[a] = q * e;
+      }
+      o = box_around(1, at, rng.in_box(Vec3(0.05), Vec3(4.0)) * scale);
+      ob.render_oriented_box(o.center, axes, o.half_extent);
     } else {
       // A triangle, now and then a sliver or one seen almost edge-on.
       const double size = rng.log_uniform(0.05, 5.0) * scale;
@@ -312,21 +325,29 @@ int check_written_bounds(double scale, bool tiny_near, std::uint64_t seed) {
           bool hit = false;
           if (kind < 2) {
             hit = intersect(o, vb.eye, dir, &t0, &t1);
+          } else if (kind == 4) {
+            // In the box's frame, about its centre.
+            const Vec3 e = vb.eye - o.center;
+            ObjectDesc local = o;
+            local.center = Vec3(0.0);
+            const Vec3 le(glm::dot(axes[0], e), glm::dot(axes[1], e), glm::dot(axes[2], e));
+            const Vec3 ld(glm::dot(axes[0], dir), glm::dot(axes[1], dir), glm::dot(axes[2], dir));
+            hit = intersect(local, le, ld, &t0, &t1);
           } else if (kind == 2) {
             hit = ray_triangle(vb.eye, dir, tri[0], tri[1], tri[2], &t0);
           } else {
             hit = ray_triangle(vb.eye, dir, tri[0], tri[1], tri[3], &t0) ||
                   ray_triangle(vb.eye, dir, tri[1], tri[2], tri[3], &t0);
           }
-          if (kind >= 2) t1 = t0;
+          if (kind == 2 || kind == 3) t1 = t0;
           EXPECT_TRUE(hit) << "pixel " << i << "," << j << " written but a ray misses: " << describe(cam) << " "
-                           << (kind < 2 ? describe(o) : "a triangle");
+                           << (kind < 2 || kind == 4 ? describe(o) : "a triangle");
           // The first hit beyond the near plane (objects are clipped there).
           EXPECT_GE(t1, cam.near) << "pixel " << i << "," << j << " written but a ray leaves before near: "
-                                  << describe(cam) << " " << (kind < 2 ? describe(o) : "a triangle");
+                                  << describe(cam) << " " << (kind < 2 || kind == 4 ? describe(o) : "a triangle");
           EXPECT_LE(std::max(t0, cam.near), static_cast<double>(bound))
               << "pixel " << i << "," << j << " bound too near: " << describe(cam) << " "
-              << (kind < 2 ? describe(o) : "a triangle");
+              << (kind < 2 || kind == 4 ? describe(o) : "a triangle");
           if (!hit || t1 < cam.near || std::max(t0, cam.near) > static_cast<double>(bound)) return checked;
           ++checked;
         }
