@@ -244,6 +244,7 @@ Status prepare(const SceneDesc& desc, const SceneOptions& options, Scene::Impl& 
       o.mesh = d.mesh;
       o.mesh_origin = d.center;
       o.mesh_rotation = unit_rotation(d.rotation);
+      o.mesh_rotation_given = d.rotation;
       o.mesh_scale = d.scale;
       o.mesh_centroid = mesh_centroid(*d.mesh);
       double model = 0.0;
@@ -383,9 +384,11 @@ std::uint64_t dynamic_entries(const Scene::Impl& s, const Obj& o) {
 /// What the scene costs with `per_level` static entries, in the terms of
 /// SceneCost; the refusal when it exceeds the meter's limit.
 /// `counted`: objects counted so far (all: the figure is the scene's; fewer:
-/// a lower bound, and a refusal says so).
+/// a lower bound, and a refusal says so). `mesh_bytes`: the meshes'
+/// (mesh_bytes()), counted with the objects.
 Status scene_cost(const Scene::Impl& s, const std::array<std::uint64_t, detail::kMaxLevels>& per_level,
-                  std::uint64_t dyn_entries, const BuildMeter& meter, SceneCost* cost, std::size_t counted) {
+                  std::uint64_t dyn_entries, const BuildMeter& meter, SceneCost* cost, std::size_t counted,
+                  std::uint64_t mesh_bytes = 0) {
   const auto nvox = static_cast<std::uint64_t>(s.spec.voxel_count());
   const bool buffer = s.options.occlusion_buffer > 0;
   std::uint64_t entries = 0, offsets = 0;
@@ -426,7 +429,7 @@ Status scene_cost(const Scene::Impl& s, const std::array<std::uint64_t, detail::
                 (bricks > 0 && s.pyr.levels > 2 ? 8 * s.pyr.cells(2) : 0) + 128 * (bricks + coarse) +
                 64 * dyn_entries + 64 * dynamic + (buffer ? 8 * cells + (bricks > 0 ? 12 * cells : 0) : 0) +
                 (buffer ? 4 * (per_level[0] + 2 * (s.pyr.cells(1) + 1)) + 4 * boxes : 0) +
-                objects * (sizeof(Obj) + 48) + (1u << 16);
+                objects * (sizeof(Obj) + 48) + mesh_bytes + (1u << 16);
   // A worker's scratch: the voxel traversal's stamps (a byte a voxel, the
   // buffer off); per object a PVS mark and a frustum mark (8) and its place
   // in the PVS (4, doubled by the list's growth); per dynamic object its
@@ -448,7 +451,7 @@ Status scene_cost(const Scene::Impl& s, const std::array<std::uint64_t, detail::
                   " id-list entries from its first " + std::to_string(counted) + " of " +
                   std::to_string(s.objs.size()) + " objects, grid " + grid + ")"
             : "about " + mib_text(cost->bytes) + " (" + std::to_string(cost->id_entries) + " id-list entries, grid " +
-                  grid + ")";
+                  grid + (mesh_bytes > 0 ? ", meshes " + mib_text(mesh_bytes) : std::string()) + ")";
     return Status::Exhausted("memory", "the scene needs " + what + ", over the limit of " + mib_text(meter.max_bytes()));
   }
   for (std::uint64_t e : per_level)
@@ -461,11 +464,27 @@ using LevelCounts = std::array<std::uint64_t, detail::kMaxLevels>;
 
 /// Counts every static object's cells per level (no allocation), then the
 /// dynamic objects' most entries, and what the scene costs.
+/// The bytes of the scene's meshes, each counted once however many objects
+/// place it (the objects share it): vertices, triangles and the vectors'
+/// bookkeeping. A mesh is kept as given, so that is what it costs.
+std::uint64_t mesh_bytes(const Scene::Impl& s) {
+  std::uint64_t bytes = 0;
+  std::vector<const Mesh*> seen;
+  for (const Obj& o : s.objs)
+    if (o.mesh) seen.push_back(o.mesh.get());
+  std::sort(seen.begin(), seen.end());
+  seen.erase(std::unique(seen.begin(), seen.end()), seen.end());
+  for (const Mesh* m : seen)
+    bytes += m->vertices.size() * sizeof(Vec3) + m->triangles.size() * sizeof(m->triangles[0]) + sizeof(Mesh) + 64;
+  return bytes;
+}
+
 Status count_cost(const Scene::Impl& s, BuildMeter& meter, SceneCost* cost, LevelCounts* counts = nullptr) {
   LevelCounts per_level{};
   std::uint64_t dyn = 0;
   // The grid alone may be over the limit: refused before any object is looked at.
   if (Status st = scene_cost(s, per_level, 0, meter, cost, 0); !st) return st;
+  const std::uint64_t meshes = mesh_bytes(s);
   for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
     const Obj& o = s.objs[slot];
     if (o.dynamic) {
@@ -477,10 +496,10 @@ Status count_cost(const Scene::Impl& s, BuildMeter& meter, SceneCost* cost, Leve
       return build_cancelled();
     // Stop as soon as the limit is passed: the count costs no more than
     // the budget it is checked against.
-    if (Status st = scene_cost(s, per_level, dyn, meter, cost, slot + 1); !st) return st;
+    if (Status st = scene_cost(s, per_level, dyn, meter, cost, slot + 1, meshes); !st) return st;
   }
   if (counts) *counts = per_level;
-  return scene_cost(s, per_level, dyn, meter, cost, s.objs.size());
+  return scene_cost(s, per_level, dyn, meter, cost, s.objs.size(), meshes);
 }
 
 /// Builds the static id lists from the counts per level: a pass over the
