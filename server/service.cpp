@@ -158,6 +158,8 @@ void Service::fill_info(const SceneEntry& e, v1::SceneInfo* out) const {
   out->set_tbvs_active(e.tbvs_active.load());
   out->set_wake_size(e.wake_size.load());
   out->set_memory_bytes(e.memory_bytes);
+  out->set_mesh_objects(e.mesh_objects);
+  out->set_mesh_triangles(e.mesh_triangles);
 }
 
 // --- RPCs ------------------------------------------------------------------
