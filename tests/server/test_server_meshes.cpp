@@ -207,11 +207,22 @@ TEST(ServerMeshes, ViewAndTickAnswerAsReplayWithRotatingMoves) {
   ASSERT_EQ(r.status, 0) << r.err;
   expect_same_output(expected, slurp(tick_out), "voxvis tick");
 
+  // The Python example's tick client sends the rotations too.
+  ASSERT_TRUE(api.create_scene("python", wire).ok());
+  const std::string py_out = server.path("python.jsonl");
+  r = run_program({"/usr/bin/env", "-u", "VOXVIS_TOKEN_FILE", "PYTHONDONTWRITEBYTECODE=1",
+                   std::string("PYTHONPATH=") + VOXVIS_PYTHON_STUBS, VOXVIS_PYTHON,
+                   std::string(VOXVIS_SOURCE_DIR) + "/examples/python/tick_client.py", "--server", server.address(),
+                   "--scene", "python", "--frames", frames, "--out", py_out, "-q"},
+                  server.dir());
+  ASSERT_EQ(r.status, 0) << r.err;
+  expect_same_output(expected, slurp(py_out), "tick_client.py");
+
   ASSERT_TRUE(api.stats("view", &info).ok());
   EXPECT_EQ(info.moves_applied(), 40u * 3u);
   std::vector<std::string> ids;
   ASSERT_TRUE(api.list_scenes(&ids).ok());
-  EXPECT_EQ(ids, (std::vector<std::string>{"delta", "tick", "view"}));
+  EXPECT_EQ(ids, (std::vector<std::string>{"delta", "python", "tick", "view"}));
   r = run_program({VOXVIS_CLI, "scenes", "--server", server.address()}, server.dir());
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_THAT(r.out, HasSubstr("view: grid 20x20x20, 7 objects (3 dynamic), 5 meshes of 382 triangles, "));
