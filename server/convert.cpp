@@ -1,6 +1,7 @@
 #include "convert.h"
 
 #include <algorithm>
+#include <charconv>
 
 #include <cmath>
 #include <cstdio>
@@ -83,6 +84,36 @@ void share_identical_meshes(SceneDesc* desc) {
     }
     if (!shared) same_hash.push_back(o.mesh);
   }
+}
+
+namespace {
+
+/// Characters of a mesh's "vertices" and "triangles" values as
+/// scene_to_json writes them: numbers in their shortest form, "[x, y, z]"
+/// and "[i, j, k]" joined by ", ".
+std::uint64_t mesh_text_bytes(const Mesh& m) {
+  std::uint64_t n = 64;
+  char buf[64];
+  for (const Vec3& v : m.vertices)
+    for (int a = 0; a < 3; ++a) n += static_cast<std::uint64_t>(std::to_chars(buf, buf + sizeof buf, v[a]).ptr - buf);
+  for (const auto& t : m.triangles)
+    for (std::uint32_t i : t) n += static_cast<std::uint64_t>(std::to_chars(buf, buf + sizeof buf, i).ptr - buf);
+  return n + 8 * (m.vertices.size() + m.triangles.size());
+}
+
+}  // namespace
+
+std::uint64_t saved_scene_bytes(const SceneDesc& desc) {
+  std::unordered_map<const Mesh*, std::uint64_t> text;  // Each distinct mesh's, once.
+  std::uint64_t total = 512;
+  for (const ObjectDesc& o : desc.objects) {
+    total += 400;  // Its id, shape, placement or corners, dynamic and max_speed: less than this.
+    if (!o.mesh) continue;
+    const auto [it, added] = text.emplace(o.mesh.get(), 0);
+    if (added) it->second = mesh_text_bytes(*o.mesh);
+    total += it->second;
+  }
+  return total;
 }
 
 Status desc_from_proto(const v1::SceneDescription& in, SceneDesc* out) {

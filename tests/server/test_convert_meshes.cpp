@@ -142,6 +142,27 @@ TEST(ConvertMeshes, SceneRoundTripIsBitExactAndKeepsInstancesShared) {
   EXPECT_NE(saved.objects[1].mesh, saved.objects[4].mesh);
 }
 
+TEST(ConvertMeshes, SavedSceneBytesForeseesTheFile) {
+  // Known before the text is made, each distinct mesh looked at once; at
+  // least the file's size and within a few per cent of it.
+  SceneDesc d = mesh_scene();
+  const std::shared_ptr<const Mesh> big = test::icosphere(4);
+  for (ObjectId id = 20; id < 26; ++id)
+    d.objects.push_back(test::mesh_object(id, big, Vec3(1.0 + id / 3.0, 4, 5), test::rotation_about(Vec3(1, 0, 0), id)));
+  const double file = static_cast<double>(scene_to_json(d).size());
+  const double foreseen = static_cast<double>(saved_scene_bytes(d));
+  EXPECT_GE(foreseen, file);
+  EXPECT_LE(foreseen, 1.05 * file);
+  // Each instance is written in full: six more, six more copies of the mesh.
+  for (ObjectId id = 30; id < 36; ++id)
+    d.objects.push_back(test::mesh_object(id, big, Vec3(1.0 + id / 3.0, 6, 5)));
+  const double more_file = static_cast<double>(scene_to_json(d).size()) - file;
+  const double more_foreseen = static_cast<double>(saved_scene_bytes(d)) - foreseen;
+  EXPECT_GT(more_file, 6 * 0.9 * static_cast<double>(big->vertices.size() * 3 * 15));
+  EXPECT_GE(more_foreseen, more_file);
+  EXPECT_LE(more_foreseen, 1.05 * more_file);
+}
+
 TEST(ConvertMeshes, SharingNeedsTheSameBits) {
   SceneDesc d = mesh_scene();
   // A copy equal in value but for one sign of zero is another mesh.

@@ -12,6 +12,7 @@
 // rotations would never show it.
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <functional>
 #include <limits>
 #include <string>
@@ -357,6 +358,42 @@ v1::SceneDescription small_mesh_scene() {
   v1::SceneDescription wire;
   to_proto(d, &wire);
   return wire;
+}
+
+// A description is saved as a scene file whose objects each carry their
+// mesh inline: instancing multiplies the file, which is refused (before it
+// is written) beyond 4 x --max-message-mib, naming the figures.
+TEST(ServerMeshes, InstancingBeyondWhatTheSavedFileHoldsIsRefused) {
+  ServerProcess server({"--max-message-mib", "1"});
+  ASSERT_TRUE(server.start());
+  const Api api = server.api();
+  const auto instances = [](int copies) {
+    SceneDesc d;
+    d.bounds_min = Vec3(0.0);
+    d.bounds_max = Vec3(20.0);
+    d.grid = glm::ivec3(20, 20, 20);
+    const std::shared_ptr<const Mesh> ball = test::icosphere(4);  // 2,562 vertices, 5,120 triangles.
+    for (int i = 0; i < copies; ++i)
+      d.objects.push_back(test::mesh_object(static_cast<ObjectId>(i + 1), ball, Vec3(1.0 + 0.6 * i, 10, 10),
+                                            test::rotation_about(Vec3(0, 1, 0), 0.1 * i), 0.3));
+    v1::SceneDescription wire;
+    to_proto(d, &wire);
+    EXPECT_LT(wire.ByteSizeLong(), std::size_t{1} << 20) << "the message itself fits";
+    return wire;
+  };
+  v1::SceneInfo info;
+  grpc::Status s = api.create_scene("few", instances(8), &info);
+  ASSERT_TRUE(s.ok()) << show(s);
+  EXPECT_EQ(info.mesh_triangles(), 5120u);
+  s = api.create_scene("many", instances(30));
+  EXPECT_EQ(s.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << show(s);
+  EXPECT_THAT(s.error_message(), HasSubstr("description: the scene would be saved as a file of about "));
+  EXPECT_THAT(s.error_message(), HasSubstr("over the limit of 4 MiB (4 x --max-message-mib)"));
+  std::vector<std::string> ids;
+  ASSERT_TRUE(api.list_scenes(&ids).ok());
+  EXPECT_EQ(ids, std::vector<std::string>{"few"});
+  EXPECT_FALSE(std::filesystem::exists(server.data_dir() + "/scenes/many.json"));
+  EXPECT_EQ(server.terminate(), 0);
 }
 
 TEST(ServerMeshes, InvalidMeshesAreRefusedNamingTheField) {
