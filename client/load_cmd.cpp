@@ -32,6 +32,13 @@ std::string grid_text(const v1::SceneInfo& info) {
          std::to_string(info.grid().nz());
 }
 
+/// "" or ", 3 meshes of 1,204 triangles" (each distinct mesh's once).
+std::string mesh_text(const v1::SceneInfo& info) {
+  if (info.mesh_objects() == 0) return "";
+  return ", " + std::to_string(info.mesh_objects()) + (info.mesh_objects() == 1 ? " mesh" : " meshes") + " of " +
+         with_commas(info.mesh_triangles()) + " triangles";
+}
+
 }  // namespace
 
 int run_load(const LoadArgs& args) {
@@ -59,8 +66,8 @@ int run_load(const LoadArgs& args) {
   if (const grpc::Status st = client->create_scene(id, text, &info); !st.ok()) {
     return report_status(st, args.net.server, about_input(st.error_code()) ? args.scene : "");
   }
-  std::printf("%s: grid %s, %u objects (%u dynamic)\n", info.scene_id().c_str(),
-              grid_text(info).c_str(), info.objects(), info.dynamic_objects());
+  std::printf("%s: grid %s, %u objects (%u dynamic)%s\n", info.scene_id().c_str(), grid_text(info).c_str(),
+              info.objects(), info.dynamic_objects(), mesh_text(info).c_str());
   return kExitOk;
 }
 
@@ -73,9 +80,9 @@ int run_scenes(const NetArgs& net) {
     return report_status(st, net.server, "");
   }
   for (const v1::SceneInfo& s : scenes) {
-    std::printf("%s: grid %s, %u objects (%u dynamic), %u viewers, %s frames served\n",
+    std::printf("%s: grid %s, %u objects (%u dynamic)%s, %u viewers, %s frames served\n",
                 s.scene_id().c_str(), grid_text(s).c_str(), s.objects(), s.dynamic_objects(),
-                s.viewers(), with_commas(s.frames_served()).c_str());
+                mesh_text(s).c_str(), s.viewers(), with_commas(s.frames_served()).c_str());
   }
   return kExitOk;
 }

@@ -1,9 +1,14 @@
 #include "convert.h"
 
 #include <algorithm>
+#include <charconv>
 
 #include <cmath>
 #include <cstdio>
+#include <string_view>
+#include <unordered_map>
+
+#include "voxvis/mesh.h"
 
 namespace voxvis::server {
 
@@ -23,7 +28,93 @@ Status vec_required(bool present, const v1::Vec3& v, const std::string& field, V
   return vec_check(v, field, out);
 }
 
+/// The bytes of a vector's elements, for hashing and comparing them as
+/// stored (bit for bit: 0.0 and -0.0 differ).
+template <class T>
+std::string_view bytes_of(const std::vector<T>& v) {
+  return std::string_view(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
+}
+
 }  // namespace
+
+Status quat_from_proto(const v1::Quat& in, const std::string& field, Quat* out) {
+  *out = Quat(in.w(), in.x(), in.y(), in.z());
+  return validate_rotation(*out, field);
+}
+
+Status mesh_from_proto(const v1::Mesh& in, const std::string& field, std::shared_ptr<const Mesh>* out) {
+  const auto nv = static_cast<std::size_t>(in.vertices_size());
+  const auto nt = static_cast<std::size_t>(in.triangles_size());
+  if (nv % 3 != 0)
+    return Status::Error(field + ".vertices", std::to_string(nv) +
+                                                  " numbers, not a multiple of 3 (x, y, z of each vertex in turn)");
+  if (nt % 3 != 0)
+    return Status::Error(field + ".triangles",
+                         std::to_string(nt) + " indices, not a multiple of 3 (i, j, k of each triangle in turn)");
+  auto mesh = std::make_shared<Mesh>();
+  mesh->vertices.resize(nv / 3);
+  for (std::size_t i = 0; i < nv / 3; ++i) {
+    const int k = static_cast<int>(3 * i);
+    mesh->vertices[i] = Vec3(in.vertices(k), in.vertices(k + 1), in.vertices(k + 2));
+  }
+  mesh->triangles.resize(nt / 3);
+  for (std::size_t t = 0; t < nt / 3; ++t) {
+    const int k = static_cast<int>(3 * t);
+    mesh->triangles[t] = {in.triangles(k), in.triangles(k + 1), in.triangles(k + 2)};
+  }
+  if (Status s = validate_mesh(*mesh, field); !s) return s;
+  *out = std::move(mesh);
+  return Status::Ok();
+}
+
+void share_identical_meshes(SceneDesc* desc) {
+  std::unordered_map<std::size_t, std::vector<std::shared_ptr<const Mesh>>> seen;
+  const std::hash<std::string_view> hash;
+  for (ObjectDesc& o : desc->objects) {
+    if (!o.mesh) continue;
+    const std::string_view v = bytes_of(o.mesh->vertices), t = bytes_of(o.mesh->triangles);
+    std::vector<std::shared_ptr<const Mesh>>& same_hash = seen[hash(v) * 31 + hash(t)];
+    bool shared = false;
+    for (const std::shared_ptr<const Mesh>& m : same_hash) {
+      if (m == o.mesh || (bytes_of(m->vertices) == v && bytes_of(m->triangles) == t)) {
+        o.mesh = m;
+        shared = true;
+        break;
+      }
+    }
+    if (!shared) same_hash.push_back(o.mesh);
+  }
+}
+
+namespace {
+
+/// Characters of a mesh's "vertices" and "triangles" values as
+/// scene_to_json writes them: numbers in their shortest form, "[x, y, z]"
+/// and "[i, j, k]" joined by ", ".
+std::uint64_t mesh_text_bytes(const Mesh& m) {
+  std::uint64_t n = 64;
+  char buf[64];
+  for (const Vec3& v : m.vertices)
+    for (int a = 0; a < 3; ++a) n += static_cast<std::uint64_t>(std::to_chars(buf, buf + sizeof buf, v[a]).ptr - buf);
+  for (const auto& t : m.triangles)
+    for (std::uint32_t i : t) n += static_cast<std::uint64_t>(std::to_chars(buf, buf + sizeof buf, i).ptr - buf);
+  return n + 8 * (m.vertices.size() + m.triangles.size());
+}
+
+}  // namespace
+
+std::uint64_t saved_scene_bytes(const SceneDesc& desc) {
+  std::unordered_map<const Mesh*, std::uint64_t> text;  // Each distinct mesh's, once.
+  std::uint64_t total = 512;
+  for (const ObjectDesc& o : desc.objects) {
+    total += 400;  // Its id, shape, placement or corners, dynamic and max_speed: less than this.
+    if (!o.mesh) continue;
+    const auto [it, added] = text.emplace(o.mesh.get(), 0);
+    if (added) it->second = mesh_text_bytes(*o.mesh);
+    total += it->second;
+  }
+  return total;
+}
 
 Status desc_from_proto(const v1::SceneDescription& in, SceneDesc* out) {
   *out = SceneDesc{};
@@ -44,6 +135,13 @@ Status desc_from_proto(const v1::SceneDescription& in, SceneDesc* out) {
                                                          "], got " + std::to_string(g[a]));
     out->grid = glm::ivec3(static_cast<int>(g[0]), static_cast<int>(g[1]), static_cast<int>(g[2]));
   }
+  // The mesh table first: every entry checked once, named by its index.
+  std::vector<std::shared_ptr<const Mesh>> meshes(static_cast<std::size_t>(in.meshes_size()));
+  for (int k = 0; k < in.meshes_size(); ++k)
+    if (Status s = mesh_from_proto(in.meshes(k), p + "meshes[" + std::to_string(k) + "]",
+                                   &meshes[static_cast<std::size_t>(k)]);
+        !s)
+      return s;
   out->objects.reserve(static_cast<std::size_t>(in.objects_size()));
   for (int i = 0; i < in.objects_size(); ++i) {
     const v1::Object& o = in.objects(i);
@@ -73,8 +171,26 @@ Status desc_from_proto(const v1::SceneDescription& in, SceneDesc* out) {
         set_box_corners(lo, hi, &d);
         break;
       }
+      case v1::Object::kMesh: {
+        // The placement's rules are validate_mesh_object's (voxvis/mesh.h),
+        // whose fields (".mesh.center", ".mesh.rotation", ".mesh.scale")
+        // are this message's.
+        const v1::MeshInstance& m = o.mesh();
+        d.shape = Shape::Mesh;
+        if (m.index() >= meshes.size())
+          return Status::Error(f + ".mesh.index", "mesh " + std::to_string(m.index()) +
+                                                      " is out of range (the description has " +
+                                                      std::to_string(meshes.size()) +
+                                                      (meshes.size() == 1 ? " mesh)" : " meshes)"));
+        d.mesh = meshes[m.index()];
+        if (m.has_center()) d.center = Vec3(m.center().x(), m.center().y(), m.center().z());
+        if (m.has_rotation()) d.rotation = Quat(m.rotation().w(), m.rotation().x(), m.rotation().y(), m.rotation().z());
+        if (m.has_scale()) d.scale = m.scale();
+        if (Status s = validate_mesh_object(d, f + ".mesh"); !s) return s;
+        break;
+      }
       default:
-        return Status::Error(f, "no shape: set sphere or box");
+        return Status::Error(f, "no shape: set sphere, box or mesh");
     }
     const double speed = o.max_speed();
     if (d.dynamic) {
@@ -96,6 +212,7 @@ Status desc_from_proto(const v1::SceneDescription& in, SceneDesc* out) {
 Status desc_from_json(const std::string& text, SceneDesc* out) {
   FormatError err;
   if (!parse_scene(text, "scene_json", out, &err)) return Status::Error("", err.str());
+  share_identical_meshes(out);
   return Status::Ok();
 }
 
@@ -150,6 +267,11 @@ Status moves_from_proto(const google::protobuf::RepeatedPtrField<v1::Move>& in, 
     mv.id = m.id();
     if (Status s = vec_required(m.has_center(), m.center(), "center", &mv.center); !s)
       return Status::Error(field(i, s.field), s.message);
+    if (m.has_rotation()) {
+      if (Status s = quat_from_proto(m.rotation(), "rotation", &mv.rotation); !s)
+        return Status::Error(field(i, s.field), s.message);
+      mv.has_rotation = true;
+    }
     out->push_back(mv);
   }
   return Status::Ok();

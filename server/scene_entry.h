@@ -54,6 +54,8 @@ struct SceneEntry {
   GridSpec grid;  // Immutable copies for statistics.
   std::uint32_t objects = 0;
   std::uint32_t dynamic_objects = 0;
+  std::uint32_t mesh_objects = 0;
+  std::uint64_t mesh_triangles = 0;  ///< Of its distinct meshes.
 
   std::atomic<bool> deleted{false};
   std::atomic<bool> positions_dirty{false};

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <set>
 #include <stdexcept>
 #include <utility>
 
@@ -58,13 +59,6 @@ grpc::Status SceneRegistry::id_free_locked(const std::string& id) const {
 grpc::Status SceneRegistry::create(const std::string& id, SceneDesc desc, const std::string& json, bool from_json,
                                    bool persist, const BuildControl* control) {
   const SceneOptions& opt = config_.scene_options;
-  // The wire and the data directory's positions carry no mesh and no
-  // rotation yet: a mesh scene is refused, not served with its rotations lost.
-  for (std::size_t i = 0; i < desc.objects.size(); ++i)
-    if (desc.objects[i].shape == Shape::Mesh)
-      return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
-                          "objects[" + std::to_string(i) + "].shape: mesh objects are not served yet (" +
-                              "the batch commands replay, verify, report and export take them)");
   if (desc.grid) {
     // A grid over the voxel limit is refused as too large, not as wrong.
     const glm::ivec3 g = *desc.grid;
@@ -140,6 +134,14 @@ grpc::Status SceneRegistry::create(const std::string& id, SceneDesc desc, const 
   entry->grid = entry->scene->grid();
   entry->objects = static_cast<std::uint32_t>(entry->scene->object_count());
   entry->dynamic_objects = static_cast<std::uint32_t>(entry->scene->dynamic_count());
+  {
+    std::set<const Mesh*> meshes;
+    for (const ObjectDesc& o : desc.objects) {
+      if (o.shape != Shape::Mesh) continue;
+      ++entry->mesh_objects;
+      if (o.mesh && meshes.insert(o.mesh.get()).second) entry->mesh_triangles += o.mesh->triangles.size();
+    }
+  }
   entry->time.store(entry->scene->time());
   entry->metrics = metrics_.scene(id);
   if (keep_objects_.load()) {
@@ -174,6 +176,8 @@ Status SceneRegistry::load(const std::string& id, const std::string& json, const
   SceneDesc desc;
   FormatError err;
   if (!parse_scene(json, source, &desc, &err)) return Status::Error("", err.str());
+  // The file holds every object's mesh inline: instances share it again.
+  share_identical_meshes(&desc);
   // Checked before the scene is registered, so that applying it cannot fail.
   if (t) {
     if (Status s = validate_time("t", *t); !s) return Status::Error("", source + ": saved time: " + s.str());

@@ -163,6 +163,7 @@ class ServerImpl final : public Server {
     sc.max_view_lead_s = config_.max_view_lead_s;
     sc.max_time_step_s = config_.max_time_step_s;
     sc.max_calls = config_.max_calls;
+    sc.max_saved_scene_bytes = 4 * static_cast<std::uint64_t>(config_.max_message_bytes);
     service_ = std::make_unique<Service>(sc, *pool_, *builds_, store_, tokens_, *metrics_, log_);
     service_->set_verifier(verifier_.get());
 

@@ -158,6 +158,8 @@ void Service::fill_info(const SceneEntry& e, v1::SceneInfo* out) const {
   out->set_tbvs_active(e.tbvs_active.load());
   out->set_wake_size(e.wake_size.load());
   out->set_memory_bytes(e.memory_bytes);
+  out->set_mesh_objects(e.mesh_objects);
+  out->set_mesh_triangles(e.mesh_triangles);
 }
 
 // --- RPCs ------------------------------------------------------------------
@@ -201,10 +203,26 @@ grpc::ServerUnaryReactor* Service::CreateScene(grpc::CallbackServerContext* ctx,
       std::string json;
       bool from_json = false;
       Status s;
+      grpc::Status too_large;
       switch (req->content_case()) {
         case v1::CreateSceneRequest::kDescription:
           s = desc_from_proto(req->description(), &desc);
-          if (s) json = scene_to_json(desc);
+          if (s) {
+            // The scene is saved as a scene file, whose objects each carry
+            // their mesh inline: instancing multiplies it. Refused before
+            // the text is made when a restart could not read it back.
+            const std::uint64_t file = saved_scene_bytes(desc);
+            if (file > config_.max_saved_scene_bytes) {
+              too_large = grpc::Status(
+                  grpc::StatusCode::RESOURCE_EXHAUSTED,
+                  "description: the scene would be saved as a file of about " + std::to_string(file >> 20) +
+                      " MiB (each object's mesh written inline, instances included), over the limit of " +
+                      std::to_string(config_.max_saved_scene_bytes >> 20) +
+                      " MiB (4 x --max-message-mib); place fewer instances of large meshes");
+              break;
+            }
+            json = scene_to_json(desc);
+          }
           break;
         case v1::CreateSceneRequest::kSceneJson:
           from_json = true;
@@ -214,7 +232,9 @@ grpc::ServerUnaryReactor* Service::CreateScene(grpc::CallbackServerContext* ctx,
         default:
           s = Status::Error("content", "missing: set description or scene_json");
       }
-      g = s ? registry_.create(req->scene_id(), std::move(desc), json, from_json, true, &control) : invalid(s);
+      g = !too_large.ok() ? too_large
+          : s             ? registry_.create(req->scene_id(), std::move(desc), json, from_json, true, &control)
+                          : invalid(s);
       if (g.ok()) {
         fill_info(*find(req->scene_id()), resp);
         log_("created scene '" + req->scene_id() + "'");

@@ -48,6 +48,11 @@ struct ServiceConfig {
   double max_time_step_s = 3600.0;
   /// Calls in progress (streams and unary calls), server-wide.
   int max_calls = 4096;
+  /// Largest scene file a CreateScene from a description may be saved as
+  /// (saved_scene_bytes): 4 x --max-message-mib, room for any description
+  /// without instancing that fits a message, while a restart, which reads
+  /// the file back, needs several times its size.
+  std::uint64_t max_saved_scene_bytes = std::uint64_t{256} << 20;
 };
 
 /// A stream the service can end from outside (shutdown, scene deletion).

@@ -18,6 +18,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "voxvis/mesh.h"
+
 namespace voxvis::server {
 namespace fs = std::filesystem;
 namespace {
@@ -288,6 +290,20 @@ std::string parse_positions(const std::string& text, double& t, std::vector<Move
       }
       move.center[axis] = c.get<double>();
     }
+    // A mesh's rotation, as the engine reports it (Scene::dynamic_centers):
+    // four numbers, a unit quaternion by validate_rotation's rule.
+    if (const auto rotation = entry.find("rotation"); rotation != entry.end()) {
+      if (!rotation->is_array() || rotation->size() != 4) return where + ".rotation: expected [w, x, y, z]";
+      double q[4];
+      for (std::size_t k = 0; k < 4; ++k) {
+        const nlohmann::json& c = (*rotation)[k];
+        if (!c.is_number()) return where + ".rotation[" + std::to_string(k) + "]: expected a number";
+        q[k] = c.get<double>();
+      }
+      move.rotation = Quat(q[0], q[1], q[2], q[3]);
+      if (const Status st = validate_rotation(move.rotation, where + ".rotation"); !st) return st.str();
+      move.has_rotation = true;
+    }
     parsed.push_back(move);
   }
   t = t_it->get<double>();
@@ -503,10 +519,16 @@ Status SceneStore::save_positions(const std::string& id, double t,
                              "must be finite and within ±" + number_text(kMaxCoordinate));
       }
     }
-    moves.push_back({{"id", m.id}, {"center", {m.center.x, m.center.y, m.center.z}}});
+    nlohmann::json entry = {{"id", m.id}, {"center", {m.center.x, m.center.y, m.center.z}}};
+    if (m.has_rotation) {
+      if (const Status st = validate_rotation(m.rotation, "positions[" + std::to_string(i) + "].rotation"); !st)
+        return st;
+      entry["rotation"] = {m.rotation.w, m.rotation.x, m.rotation.y, m.rotation.z};
+    }
+    moves.push_back(std::move(entry));
   }
   // nlohmann writes doubles in the shortest form that reads back to the same
-  // value, so saved centres are exact.
+  // value, so saved centres and rotations are exact.
   const nlohmann::json doc = {{"format", kPositionsFormat}, {"t", t}, {"moves", std::move(moves)}};
   return write_atomic(scenes_dir(dir_), id + ".positions", doc.dump() + "\n");
 }

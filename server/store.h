@@ -5,8 +5,10 @@
 //                           once, before CreateScene answers OK
 //   scenes/<id>.positions   JSON {"format": "voxvis-positions/1", "t": T,
 //                           "moves": [{"id": N, "center": [x,y,z]}, ...]}:
-//                           last centres of the dynamic objects, rewritten
-//                           every save period and at shutdown
+//                           last centres of the dynamic objects (a mesh's
+//                           with "rotation": [w,x,y,z], its rotation as last
+//                           given), rewritten every save period and at
+//                           shutdown; doubles written exactly
 //   quarantine/             what could not be loaded, moved aside (created
 //                           when first needed)
 //
@@ -56,9 +58,9 @@ class SceneStore {
   /// unexpected names, unreadable scene files (with their positions),
   /// positions files of no scene, and positions files that do not parse or
   /// are out of range (t beyond ±kMaxSceneTime, centres beyond
-  /// ±kMaxCoordinate; the scene then loads at its created positions). A scene
-  /// file is returned as it is: the caller parses it, and quarantine()s it
-  /// when it is refused.
+  /// ±kMaxCoordinate, a rotation not a unit quaternion; the scene then loads
+  /// at its created positions). A scene file is returned as it is: the caller
+  /// parses it, and quarantine()s it when it is refused.
   std::vector<StoredScene> load_all(const std::function<void(const std::string&)>& warn);
 
   /// Moves both files of a scene (those that exist) into quarantine/, under
@@ -68,8 +70,9 @@ class SceneStore {
 
   /// Writes scenes/<id>.json atomically and durably.
   Status save_scene(const std::string& id, const std::string& json);
-  /// Writes scenes/<id>.positions atomically and durably. `t` and the centres
-  /// must be finite and within what load_all accepts.
+  /// Writes scenes/<id>.positions atomically and durably. `t`, the centres
+  /// and the rotations (those of moves with has_rotation) must be finite and
+  /// within what load_all accepts.
   Status save_positions(const std::string& id, double t, const std::vector<Move>& positions);
   /// Removes both files of a scene (durably: the directory is fsynced).
   Status remove_scene(const std::string& id);

@@ -7,6 +7,7 @@
 #include <cstring>
 #include <fstream>
 #include <sstream>
+#include <unordered_map>
 #include <utility>
 
 namespace voxvis::client {
@@ -158,12 +159,25 @@ void to_proto(const SceneDesc& scene, v1::SceneDescription* out) {
     out->mutable_grid()->set_nz(static_cast<std::uint32_t>(scene.grid->z));
   }
   out->mutable_objects()->Reserve(static_cast<int>(scene.objects.size()));
+  // Each mesh goes once into the table, in the order objects first name it;
+  // the objects that share it (one shared_ptr) name one entry.
+  std::unordered_map<const Mesh*, std::uint32_t> mesh_index;
   for (const ObjectDesc& o : scene.objects) {
     v1::Object* p = out->add_objects();
     p->set_id(o.id);
-    // A mesh has no form on the wire yet: its shape is left unset, which
-    // the server refuses naming the object, rather than sent as a box.
-    if (o.shape == Shape::Sphere) {
+    if (o.shape == Shape::Mesh) {
+      // A mesh object without its mesh (not a valid description) is sent
+      // without a shape, which the server refuses naming the object.
+      if (o.mesh) {
+        const auto [at, added] = mesh_index.emplace(o.mesh.get(), static_cast<std::uint32_t>(out->meshes_size()));
+        if (added) to_proto(*o.mesh, out->add_meshes());
+        v1::MeshInstance* m = p->mutable_mesh();
+        m->set_index(at->second);
+        to_proto(o.center, m->mutable_center());
+        to_proto(o.rotation, m->mutable_rotation());
+        m->set_scale(o.scale);
+      }
+    } else if (o.shape == Shape::Sphere) {
       to_proto(o.center, p->mutable_sphere()->mutable_center());
       p->mutable_sphere()->set_radius(o.radius);
     } else if (o.shape == Shape::Box) {
@@ -173,6 +187,49 @@ void to_proto(const SceneDesc& scene, v1::SceneDescription* out) {
     p->set_dynamic(o.dynamic);
     if (o.dynamic) p->set_max_speed(o.max_speed);
   }
+}
+
+void to_proto(const Quat& q, v1::Quat* out) {
+  out->set_w(q.w);
+  out->set_x(q.x);
+  out->set_y(q.y);
+  out->set_z(q.z);
+}
+
+Quat from_proto(const v1::Quat& q) { return Quat(q.w(), q.x(), q.y(), q.z()); }
+
+void to_proto(const Mesh& mesh, v1::Mesh* out) {
+  out->Clear();
+  auto* v = out->mutable_vertices();
+  v->Reserve(static_cast<int>(3 * mesh.vertices.size()));
+  for (const Vec3& p : mesh.vertices) {
+    v->AddAlreadyReserved(p.x);
+    v->AddAlreadyReserved(p.y);
+    v->AddAlreadyReserved(p.z);
+  }
+  auto* t = out->mutable_triangles();
+  t->Reserve(static_cast<int>(3 * mesh.triangles.size()));
+  for (const auto& tri : mesh.triangles)
+    for (std::uint32_t i : tri) t->AddAlreadyReserved(i);
+}
+
+void to_proto(const Move& move, v1::Move* out) {
+  out->set_id(move.id);
+  to_proto(move.center, out->mutable_center());
+  if (move.has_rotation) {
+    to_proto(move.rotation, out->mutable_rotation());
+  } else {
+    out->clear_rotation();
+  }
+}
+
+Move from_proto(const v1::Move& move) {
+  Move m;
+  m.id = move.id();
+  m.center = from_proto(move.center());
+  m.has_rotation = move.has_rotation();
+  if (m.has_rotation) m.rotation = from_proto(move.rotation());
+  return m;
 }
 
 void to_proto(const Camera& camera, v1::Camera* out) {
@@ -541,11 +598,7 @@ bool SimulationSession::send(std::uint64_t seq, double t, const std::vector<Move
   batch->set_seq(seq);
   batch->set_t(t);
   batch->mutable_moves()->Reserve(static_cast<int>(moves.size()));
-  for (const Move& m : moves) {
-    v1::Move* p = batch->add_moves();
-    p->set_id(m.id);
-    to_proto(m.center, p->mutable_center());
-  }
+  for (const Move& m : moves) to_proto(m, batch->add_moves());
   if (!stream_->Write(request)) return false;
   v1::SimulateResponse response;
   while (stream_->Read(&response)) {

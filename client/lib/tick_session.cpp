@@ -21,11 +21,7 @@ bool TickSession::tick(std::uint64_t tick_no, double t, const std::vector<Move>&
   if (!ready(&request)) return false;
   request.set_tick(tick_no);
   request.set_t(t);
-  for (const Move& m : moves) {
-    v1::Move* p = request.add_moves();
-    p->set_id(m.id);
-    to_proto(m.center, p->mutable_center());
-  }
+  for (const Move& m : moves) to_proto(m, request.add_moves());
   for (const TickCamera& v : viewers) {
     v1::TickViewer* p = request.add_viewers();
     p->set_viewer(v.viewer);

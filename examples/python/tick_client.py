@@ -61,6 +61,9 @@ def shape_error(frame):
     for i, m in enumerate(frame.get("moves", [])):
         if not (isinstance(m, dict) and isinstance(m.get("id"), int) and vector(m.get("center"))):
             return f"moves[{i}]: expected {{\"id\": <integer>, \"center\": [x, y, z]}}"
+        rotation = m.get("rotation", [1, 0, 0, 0])
+        if not (isinstance(rotation, list) and len(rotation) == 4 and all(map(number, rotation))):
+            return f"moves[{i}].rotation: expected [w, x, y, z]"
     return None
 
 
@@ -90,6 +93,16 @@ def read_frames(path):
 
 def vec3(v):
     return pb.Vec3(x=v[0], y=v[1], z=v[2])
+
+
+def move(m):
+    """A frames-file move; a mesh's rotation [w, x, y, z] goes with it (the
+    server checks it is a unit quaternion and that the object is a mesh)."""
+    out = pb.Move(id=m["id"], center=vec3(m["center"]))
+    if "rotation" in m:
+        w, x, y, z = m["rotation"]
+        out.rotation.CopyFrom(pb.Quat(w=w, x=x, y=y, z=z))
+    return out
 
 
 def camera(f):
@@ -259,7 +272,7 @@ async def run(args):
         async with channel:  # Closing the channel ends its calls.
             session = TickSession(pb_grpc.VisibilityStub(channel), args.scene, args.delta, metadata)
             for k, (line, frame) in enumerate(frames):
-                moves = [pb.Move(id=m["id"], center=vec3(m["center"])) for m in frame.get("moves", [])]
+                moves = [move(m) for m in frame.get("moves", [])]
                 cameras = {v: camera(frames[(start_line[v] + k) % n][1]) for v in range(viewers)}
                 for viewer, answer, pvs, wake in await session.tick(k, frame["t"], moves, cameras):
                     if answer.HasField("error"):

@@ -247,6 +247,7 @@ Status prepare(const SceneDesc& desc, const SceneOptions& options, Scene::Impl& 
       o.mesh = d.mesh;
       o.mesh_origin = d.center;
       o.mesh_rotation = unit_rotation(d.rotation);
+      o.mesh_rotation_given = d.rotation;
       o.mesh_scale = d.scale;
       o.mesh_centroid = mesh_centroid(*d.mesh);
       double model = 0.0;
@@ -391,8 +392,9 @@ std::uint64_t dynamic_entries(const Scene::Impl& s, const Obj& o) {
 /// placed vertices, their triangles' brick entries and the bricks' offsets)
 /// and a worker's (a drawn mark per static triangle, a dynamic mesh's
 /// placed vertices while drawn).
+/// `own`: the meshes' own vertices and triangles (mesh_bytes()).
 struct MeshCost {
-  std::uint64_t bytes = 0, scratch = 0;
+  std::uint64_t bytes = 0, scratch = 0, own = 0;
 };
 
 bool count_triangle_bricks(const Scene::Impl& s, const Obj& o, BuildMeter& meter, std::uint64_t* n);
@@ -440,7 +442,7 @@ Status scene_cost(const Scene::Impl& s, const std::array<std::uint64_t, detail::
                 (bricks > 0 && s.pyr.levels > 2 ? 8 * s.pyr.cells(2) : 0) + 128 * (bricks + coarse) +
                 64 * dyn_entries + 64 * dynamic + (buffer ? 8 * cells + (bricks > 0 ? 12 * cells : 0) : 0) +
                 (buffer ? 4 * (per_level[0] + 2 * (s.pyr.cells(1) + 1)) + 4 * boxes : 0) +
-                objects * (sizeof(Obj) + 48) + mesh.bytes + (1u << 16);
+                objects * (sizeof(Obj) + 48) + mesh.bytes + mesh.own + (1u << 16);
   // A worker's scratch: the voxel traversal's stamps (a byte a voxel, the
   // buffer off); per object a PVS mark and a frustum mark (8) and its place
   // in the PVS (4, doubled by the list's growth); per dynamic object its
@@ -462,7 +464,7 @@ Status scene_cost(const Scene::Impl& s, const std::array<std::uint64_t, detail::
                   " id-list entries from its first " + std::to_string(counted) + " of " +
                   std::to_string(s.objs.size()) + " objects, grid " + grid + ")"
             : "about " + mib_text(cost->bytes) + " (" + std::to_string(cost->id_entries) + " id-list entries, grid " +
-                  grid + ")";
+                  grid + (mesh.own > 0 ? ", meshes " + mib_text(mesh.own) : std::string()) + ")";
     return Status::Exhausted("memory", "the scene needs " + what + ", over the limit of " + mib_text(meter.max_bytes()));
   }
   for (std::uint64_t e : per_level)
@@ -475,6 +477,21 @@ using LevelCounts = std::array<std::uint64_t, detail::kMaxLevels>;
 
 /// Counts every static object's cells per level (no allocation), then the
 /// dynamic objects' most entries, and what the scene costs.
+/// The bytes of the scene's meshes, each counted once however many objects
+/// place it (the objects share it): vertices, triangles and the vectors'
+/// bookkeeping. A mesh is kept as given, so that is what it costs.
+std::uint64_t mesh_bytes(const Scene::Impl& s) {
+  std::uint64_t bytes = 0;
+  std::vector<const Mesh*> seen;
+  for (const Obj& o : s.objs)
+    if (o.mesh) seen.push_back(o.mesh.get());
+  std::sort(seen.begin(), seen.end());
+  seen.erase(std::unique(seen.begin(), seen.end()), seen.end());
+  for (const Mesh* m : seen)
+    bytes += m->vertices.size() * sizeof(Vec3) + m->triangles.size() * sizeof(m->triangles[0]) + sizeof(Mesh) + 64;
+  return bytes;
+}
+
 Status count_cost(const Scene::Impl& s, BuildMeter& meter, SceneCost* cost, LevelCounts* counts = nullptr) {
   LevelCounts per_level{};
   std::uint64_t dyn = 0;
@@ -483,6 +500,7 @@ Status count_cost(const Scene::Impl& s, BuildMeter& meter, SceneCost* cost, Leve
   std::uint64_t widest = 0;  // Vertices of the largest dynamic mesh.
   // The grid alone may be over the limit: refused before any object is looked at.
   if (Status st = scene_cost(s, per_level, 0, meter, cost, 0); !st) return st;
+  mesh.own = mesh_bytes(s);
   for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
     const Obj& o = s.objs[slot];
     if (o.dynamic) {

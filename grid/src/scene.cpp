@@ -883,7 +883,10 @@ Status Scene::apply_moves(double t, std::span<const Move> moves, MoveReport* rep
     if (o.shape == Shape::Mesh) {
       placed = o;
       placed.mesh_origin = m.center;
-      if (m.has_rotation) placed.mesh_rotation = unit_rotation(m.rotation);
+      if (m.has_rotation) {
+        placed.mesh_rotation = unit_rotation(m.rotation);
+        placed.mesh_rotation_given = m.rotation;
+      }
       s.place_mesh(placed);
       center = placed.center;
       half = placed.half;
@@ -894,6 +897,7 @@ Status Scene::apply_moves(double t, std::span<const Move> moves, MoveReport* rep
       if (o.shape == Shape::Mesh) {
         o.mesh_origin = placed.mesh_origin;
         o.mesh_rotation = placed.mesh_rotation;
+        o.mesh_rotation_given = placed.mesh_rotation_given;
       }
     };
     const double dist = glm::length(center - o.center);
@@ -946,7 +950,8 @@ std::vector<Move> Scene::dynamic_centers(double* time, std::uint64_t* epoch) con
   out.reserve(impl_->dynamic_count);
   for (const Obj& o : impl_->objs)
     if (o.dynamic)
-      out.push_back(o.shape == Shape::Mesh ? Move{o.id, o.mesh_origin, true, o.mesh_rotation} : Move{o.id, o.center});
+      out.push_back(o.shape == Shape::Mesh ? Move{o.id, o.mesh_origin, true, o.mesh_rotation_given}
+                                           : Move{o.id, o.center});
   std::sort(out.begin(), out.end(), [](const Move& a, const Move& b) { return a.id < b.id; });
   return out;
 }

@@ -110,6 +110,11 @@ struct Obj {
   std::shared_ptr<const Mesh> mesh;
   Vec3 mesh_origin{0.0};          ///< Where the model origin is (ObjectDesc::center, or the last move's).
   Quat mesh_rotation{1.0, 0.0, 0.0, 0.0};  ///< Unit.
+  /// The rotation as last given (ObjectDesc::rotation or the last move's),
+  /// before unit_rotation: what dynamic_centers reports, so that a scene
+  /// created with it (a server resuming from its saved positions) computes
+  /// mesh_rotation bit for bit as this one did.
+  Quat mesh_rotation_given{1.0, 0.0, 0.0, 0.0};
   double mesh_scale = 1.0;
   Vec3 mesh_centroid{0.0};        ///< Model units (mesh_centroid()).
   /// scale x sqrt(3) x the largest model coordinate: with the origin's

@@ -227,3 +227,75 @@ TEST(MeshScene, DynamicMeshMovesAndRotates) {
 
 }  // namespace
 }  // namespace voxvis::test
+
+namespace voxvis::test {
+namespace {
+
+// dynamic_centers reports a mesh's rotation as given, before normalization,
+// so that a scene created with it (a server resuming from its saved
+// positions) places the mesh bit for bit as the scene that moved it.
+TEST(MeshScene, DynamicCentersGiveTheRotationAsGiven) {
+  SceneDesc d = unit_grid(16);
+  ObjectDesc o = quad(2, 1.0);
+  o.center = Vec3(8, 8, 8);
+  o.rotation = Quat(std::cos(0.3), std::sin(0.3), 0.0, 0.0) * (1.0 - 8e-7);
+  o.dynamic = true;
+  o.max_speed = 100.0;
+  d.objects.push_back(o);
+  std::unique_ptr<Scene> scene;
+  ASSERT_TRUE(Scene::create(d, {}, &scene).ok);
+  std::vector<Move> now = scene->dynamic_centers();
+  ASSERT_EQ(now.size(), 1u);
+  EXPECT_TRUE(now[0].has_rotation);
+  EXPECT_EQ(now[0].rotation, o.rotation) << "the created rotation, not its normalized form";
+  const Quat q = Quat(std::cos(1.1), 0.0, std::sin(1.1), 0.0) * (1.0 + 9e-7);
+  ASSERT_NE(unit_rotation(q), q) << "a rotation whose normalized form differs, or this checks nothing";
+  ASSERT_TRUE(scene->apply_moves(0.5, std::vector<Move>{Move{2, Vec3(8, 8, 9), true, q}}).ok);
+  now = scene->dynamic_centers();
+  EXPECT_EQ(now[0].center, Vec3(8, 8, 9));
+  EXPECT_EQ(now[0].rotation, q);
+  // A move without a rotation keeps the last one given.
+  ASSERT_TRUE(scene->apply_moves(0.6, std::vector<Move>{Move{2, Vec3(8, 8, 8)}}).ok);
+  now = scene->dynamic_centers();
+  EXPECT_EQ(now[0].rotation, q);
+  // A scene created where dynamic_centers says places the mesh the same.
+  d.objects[0].center = now[0].center;
+  d.objects[0].rotation = now[0].rotation;
+  std::unique_ptr<Scene> resumed;
+  ASSERT_TRUE(Scene::create(d, {}, &resumed).ok);
+  EXPECT_EQ(resumed->impl().objs[0].mesh_rotation, scene->impl().objs[0].mesh_rotation);
+  EXPECT_EQ(resumed->impl().objs[0].center, scene->impl().objs[0].center);
+}
+
+// The estimate counts a mesh's vertices and triangles, once however many
+// objects place it.
+TEST(MeshScene, EstimateCountsEachMeshOnce) {
+  // With the buffer off a mesh's bytes count once however many objects
+  // place it; with it on, each static object also keeps its placed vertices
+  // (the triangles it draws).
+  const auto cost = [](int copies, std::size_t extra_vertices, int buffer = 0) {
+    SceneDesc d = unit_grid(16);
+    ObjectDesc q = quad(1, 0.5);
+    auto m = std::make_shared<Mesh>(*q.mesh);
+    for (std::size_t i = 0; i < extra_vertices; ++i) m->vertices.push_back(Vec3(0.25, 0.25, 0.0));
+    for (int k = 0; k < copies; ++k) {
+      ObjectDesc o = q;
+      o.id = static_cast<ObjectId>(k + 1);
+      o.mesh = m;
+      o.center = Vec3(2.0 + k, 8, 8);
+      d.objects.push_back(o);
+    }
+    SceneCost c;
+    SceneOptions opt;
+    opt.occlusion_buffer = buffer;
+    EXPECT_TRUE(Scene::estimate(d, opt, &c).ok);
+    return c.bytes;
+  };
+  constexpr std::size_t kExtra = 100000;  // Unused vertices: memory, no footprint.
+  EXPECT_EQ(cost(1, kExtra) - cost(1, 0), kExtra * sizeof(Vec3));
+  EXPECT_EQ(cost(5, kExtra) - cost(5, 0), kExtra * sizeof(Vec3));
+  EXPECT_EQ(cost(5, kExtra, 160) - cost(5, 0, 160), 6 * kExtra * sizeof(Vec3));
+}
+
+}  // namespace
+}  // namespace voxvis::test

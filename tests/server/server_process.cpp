@@ -390,11 +390,7 @@ bool SimStream::send(std::uint64_t seq, double t, const std::vector<Move>& moves
   v1::MoveBatch* b = req.mutable_batch();
   b->set_seq(seq);
   b->set_t(t);
-  for (const Move& m : moves) {
-    v1::Move* pm = b->add_moves();
-    pm->set_id(m.id);
-    to_proto(m.center, pm->mutable_center());
-  }
+  for (const Move& m : moves) to_proto(m, b->add_moves());
   return stream_->Write(req);
 }
 

@@ -93,13 +93,24 @@ TEST(ServerErrors, BadInputIsRefusedAndOthersKeepBeingServed) {
     EXPECT_THAT(s.error_message(), HasSubstr("camera"));
     watcher.expect_served("no camera");
   }
-  {  // A mesh scene: the wire and the data directory carry no meshes yet.
+  {  // A mesh scene is served (it was once refused), and a bad mesh refused.
     const std::string mesh = R"({"format": "voxvis-scene/1", "bounds": {"min": [0, 0, 0], "max": [8, 8, 8]},
       "objects": [{"id": 1, "shape": "mesh", "center": [4, 4, 4],
                    "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], "triangles": [[0, 1, 2]]}]})";
-    const grpc::Status s = api.create_scene_json("m", mesh);
+    v1::SceneInfo info;
+    grpc::Status s = api.create_scene_json("m", mesh, &info);
+    ASSERT_TRUE(s.ok()) << show(s);
+    EXPECT_EQ(info.mesh_objects(), 1u);
+    EXPECT_EQ(info.mesh_triangles(), 1u);
+    v1::GetPvsResponse pvs;
+    ASSERT_TRUE(api.get_pvs("m", 0.0, look(Vec3(4.2, 4.2, -3), Vec3(0, 0, 1)), &pvs).ok());
+    EXPECT_EQ(ids_of(pvs.pvs()), std::vector<ObjectId>{1});
+    ASSERT_TRUE(api.delete_scene("m").ok());
+    std::string bad = mesh;
+    bad.replace(bad.find("[[0, 1, 2]]"), 11, "[[0, 1, 1]]");
+    s = api.create_scene_json("m", bad);
     EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << show(s);
-    EXPECT_THAT(s.error_message(), HasSubstr("objects[0].shape: mesh objects are not served yet"));
+    EXPECT_THAT(s.error_message(), HasSubstr("objects[0].triangles[0]: is degenerate"));
     watcher.expect_served("mesh scene");
   }
   {  // Unknown scene, on every call that names one.

@@ -8,6 +8,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -105,6 +107,8 @@ TEST_F(StoreTest, SceneAndPositionsRoundTrip) {
   const std::vector<Move> moves = {
       {7, {0.1 + 0.2, -1e-300, 123456789.123456789}},
       {4294967295u, {1.0 / 3.0, 2.0 / 3.0, -0.0}},
+      // A mesh's rotation as given: a norm a little off 1, digits to keep.
+      {9, {1, 2, 3}, true, Quat(0.1 + 0.2, 1.0 / 3.0, -0.0, std::sqrt(1.0 - (0.1 + 0.2) * (0.1 + 0.2) - 1.0 / 9.0) * (1.0 + 5e-7))},
   };
   ASSERT_TRUE(store.save_positions("a", t, moves).ok);
 
@@ -125,6 +129,10 @@ TEST_F(StoreTest, SceneAndPositionsRoundTrip) {
     for (int axis = 0; axis < 3; ++axis) {
       EXPECT_EQ(scenes[0].positions[i].center[axis], moves[i].center[axis]) << i << " " << axis;
     }
+    EXPECT_EQ(scenes[0].positions[i].has_rotation, moves[i].has_rotation) << i;
+    const Quat& got = scenes[0].positions[i].rotation;
+    const Quat& want = moves[i].rotation;
+    EXPECT_EQ(std::memcmp(&got, &want, sizeof got), 0) << i << ": every bit, the sign of zero too";
   }
   EXPECT_EQ(scenes[1].id, "b");
   EXPECT_FALSE(scenes[1].t.has_value());
@@ -183,6 +191,10 @@ TEST_F(StoreTest, BadPositionsAreIgnoredWithAWarning) {
       {"huge_t", R"({"format": "voxvis-positions/1", "t": 1e300, "moves": []})"},
       {"early_t", R"({"format": "voxvis-positions/1", "t": -2e10, "moves": []})"},
       {"far_center", R"({"format": "voxvis-positions/1", "t": 1, "moves": [{"id": 1, "center": [0,0,-1e13]}]})"},
+      // A mesh's rotation: four numbers of unit norm (within 1e-6).
+      {"short_rotation", R"({"format": "voxvis-positions/1", "t": 1, "moves": [{"id": 1, "center": [0,0,0], "rotation": [1,0,0]}]})"},
+      {"string_rotation", R"({"format": "voxvis-positions/1", "t": 1, "moves": [{"id": 1, "center": [0,0,0], "rotation": [1,0,"0",0]}]})"},
+      {"long_rotation", R"({"format": "voxvis-positions/1", "t": 1, "moves": [{"id": 1, "center": [0,0,0], "rotation": [2,0,0,0]}]})"},
   };
   for (const auto& [id, text] : cases) {
     ASSERT_TRUE(store.save_scene(id, "{}").ok);
@@ -210,6 +222,9 @@ TEST_F(StoreTest, BadPositionsAreIgnoredWithAWarning) {
   EXPECT_TRUE(has("moves[0].center[2]"));
   EXPECT_TRUE(has("moves[0].id"));
   EXPECT_TRUE(has("t: expected a finite number of seconds within"));
+  EXPECT_TRUE(has("moves[0].rotation: expected [w, x, y, z]"));
+  EXPECT_TRUE(has("moves[0].rotation[2]: expected a number"));
+  EXPECT_TRUE(has("moves[0].rotation: must be a unit quaternion [w, x, y, z] (norm within 1e-06 of 1), got norm 2"));
 
   // Each positions file is in quarantine/, its content kept; the scenes stay.
   std::vector<std::string> quarantined, kept;
@@ -417,6 +432,9 @@ TEST_F(StoreTest, NonFinitePositionsAreRefused) {
   EXPECT_FALSE(store.save_positions("a", std::nan(""), {}).ok);
   EXPECT_FALSE(store.save_positions("a", 2e10, {}).ok);
   EXPECT_FALSE(store.save_positions("a", 0, {{1, {0, 0, 1e13}}}).ok);
+  const Status r = store.save_positions("a", 0, {{1, {0, 0, 0}, true, Quat(std::nan(""), 0, 0, 0)}});
+  EXPECT_FALSE(r.ok);
+  EXPECT_EQ(r.field, "positions[0].rotation");
   EXPECT_FALSE(fs::exists(fs::path(dir_) / "scenes" / "a.positions"));
 }
 

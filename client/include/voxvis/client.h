@@ -82,7 +82,20 @@ std::string describe(const grpc::Status& status, const std::string& address = {}
 
 void to_proto(const Vec3& v, v1::Vec3* out);
 Vec3 from_proto(const v1::Vec3& v);
+void to_proto(const Quat& q, v1::Quat* out);
+Quat from_proto(const v1::Quat& q);
+/// A mesh as the flat arrays of the wire (x, y, z of each vertex in turn;
+/// i, j, k of each triangle in turn).
+void to_proto(const Mesh& mesh, v1::Mesh* out);
+/// A scene; its meshes go once each into `meshes`, in the order objects
+/// first name them, and the objects that share one (one shared_ptr) name
+/// one entry (instancing). Doubles are copied bit for bit.
 void to_proto(const SceneDesc& scene, v1::SceneDescription* out);
+/// A move; its rotation is sent when has_rotation is set (a mesh's), else
+/// left absent (the mesh keeps its rotation).
+void to_proto(const Move& move, v1::Move* out);
+/// A move as received, unchecked (the server's conversion checks).
+Move from_proto(const v1::Move& move);
 void to_proto(const Camera& camera, v1::Camera* out);
 Camera from_proto(const v1::Camera& camera);
 FrameStats from_proto(const v1::FrameStats& stats);

@@ -198,7 +198,7 @@ using ViewerId = std::uint32_t;
 /// it: Scene::estimate.
 struct SceneCost {
   glm::ivec3 res{1};              ///< The grid the scene gets (given or automatic).
-  std::uint64_t bytes = 0;        ///< Memory the scene keeps, bytes: grid layers, id lists, objects.
+  std::uint64_t bytes = 0;        ///< Memory the scene keeps, bytes: grid layers, id lists, objects, meshes (each once).
   std::uint64_t scratch_bytes = 0;///< What each worker's Scratch grows by to serve it, bytes.
   std::uint64_t id_entries = 0;   ///< Entries of the id lists (each object once per cell it is stored in).
   std::uint64_t work = 0;         ///< Steps the build takes (cells written and tested), for progress.
@@ -287,7 +287,9 @@ class Scene {
   /// Current centres of the dynamic objects, ascending ids, world units, and
   /// (when `time` is given) the scene time they are at and (when `epoch` is
   /// given) the positions' epoch (FrameResult::positions_epoch), all read
-  /// together.
+  /// together. A mesh's entry has its model origin's position and its
+  /// rotation as last given (has_rotation set; before normalization), so
+  /// that a scene created with them places the mesh bit for bit as this one.
   std::vector<Move> dynamic_centers(double* time = nullptr, std::uint64_t* epoch = nullptr) const;
 
   struct Impl;
