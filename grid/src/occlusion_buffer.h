@@ -225,6 +225,11 @@ class OcclusionBuffer {
   /// the eye, in order, at most 24) is met: one edge function per side.
   /// False (the occluder must not be drawn) when a side defines no plane.
   bool polygon_edges(const Vec3* v, int n, ConvexOccluder* occ) const;
+  /// Whether the shape of vertices v[0..n) (relative to the eye, wholly
+  /// beyond the near plane) is so small in the image, at its nearest depth
+  /// and the image's centre, that it is not worth drawing (under 1.5
+  /// pixels across).
+  bool below_a_pixel(const Vec3* v, int n) const;
   /// Fills the convex polygon q[0..nq) (relative to the eye, beyond the near
   /// plane, every ray within its sides meeting the occluder) at the least of
   /// the reciprocal depths `planes`, whose relative error is `depth_err`;

