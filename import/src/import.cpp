@@ -420,7 +420,7 @@ Status import_one(Assimp::Importer& importer, const std::string& path, const Imp
     const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     char buf[64];
     std::snprintf(buf, sizeof buf, " in %.1f s", secs);
-    options.progress(path + ": " + std::to_string(out->objects.size() - before) + " objects, " +
+    options.progress(path + ": " + std::to_string(out->objects.size() - before) + (out->objects.size() - before == 1 ? " object, " : " objects, ") +
                      std::to_string(out->stats.triangles - stats_before.triangles) + " triangles" + buf);
   }
   return Status::Ok();
