@@ -3,10 +3,18 @@
 // (docs/importing.md; docs/formats.md, "Names table").
 #include "import_cmd.h"
 
+#include <poll.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
+#include <chrono>
 #include <cinttypes>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <string>
 #include <vector>
 
@@ -56,6 +64,23 @@ std::string names_path_for(const std::string& scene_out) {
   return scene_out + ".names.json";
 }
 
+namespace {
+
+/// The import itself and the files written, in the child process; the
+/// reading of every model is announced on `progress_fd` ("<path>\n").
+int import_and_write(const ImportArgs& args, import::ImportOptions options, const int grid[3],
+                     const std::string& names_out, int progress_fd);
+
+/// Runs import_and_write in a child process and waits for it at most
+/// args.timeout seconds. assimp reads files voxvis does not control, and a
+/// malformed one can crash or hang it (docs/fuzzing.md, "Findings"): the
+/// child's death or a timeout becomes an error naming the file being read,
+/// and the output files' temporaries are removed.
+int supervise(const ImportArgs& args, const import::ImportOptions& options, const int grid[3],
+              const std::string& names_out);
+
+}  // namespace
+
 int run_import(const ImportArgs& args) {
   // The arguments CLI11 cannot check.
   import::ImportOptions options;
@@ -89,15 +114,29 @@ int run_import(const ImportArgs& args) {
     return arg_error("--scene-out", "must name a file (the names table goes beside it)");
   const std::string names_out = args.names_out.empty() ? names_path_for(args.scene_out) : args.names_out;
   if (names_out == args.scene_out) return arg_error("--names-out", "must differ from --scene-out");
+  if (!std::isfinite(args.timeout) || args.timeout < 0.0)
+    return arg_error("--timeout", "must be a number of seconds >= 0 (0: no limit), got " + number_text(args.timeout));
+  return supervise(args, options, grid, names_out);
+}
 
+namespace {
+
+int import_and_write(const ImportArgs& args, import::ImportOptions options, const int grid[3],
+                     const std::string& names_out, int progress_fd) {
   // The outputs are opened before the (possibly slow) import, so that a bad
   // path fails at once; they are written whole or not at all.
+  std::string message;
   OutputFile scene_file, names_file;
   if (!scene_file.open(args.scene_out, &message)) return report(FormatError{args.scene_out, 0, "", message});
   if (!names_file.open(names_out, &message)) return report(FormatError{names_out, 0, "", message});
 
-  if (!args.quiet)
-    options.progress = [](const std::string& line) { std::fprintf(stderr, "voxvis: %s\n", line.c_str()); };
+  options.progress = [&args, progress_fd](const std::string& line) {
+    if (progress_fd >= 0 && line.rfind("reading ", 0) == 0) {
+      const std::string path = line.substr(8, line.rfind(" (") - 8) + "\n";
+      [[maybe_unused]] const ssize_t n = ::write(progress_fd, path.data(), path.size());
+    }
+    if (!args.quiet) std::fprintf(stderr, "voxvis: %s\n", line.c_str());
+  };
   import::ImportResult result;
   if (const Status st = import::import_files(args.models, options, &result); !st) {
     if (st.code == Status::Code::ResourceExhausted) {
@@ -175,5 +214,81 @@ int run_import(const ImportArgs& args) {
   }
   return kExitOk;
 }
+
+std::string signal_text(int sig) {
+  const char* name = sig == SIGSEGV ? "SIGSEGV" : sig == SIGABRT ? "SIGABRT" : sig == SIGBUS ? "SIGBUS"
+                     : sig == SIGFPE ? "SIGFPE" : sig == SIGILL ? "SIGILL" : sig == SIGKILL ? "SIGKILL" : nullptr;
+  return "signal " + std::to_string(sig) + (name != nullptr ? std::string(" (") + name + ")" : std::string());
+}
+
+int supervise(const ImportArgs& args, const import::ImportOptions& options, const int grid[3],
+              const std::string& names_out) {
+  int fds[2];
+  if (::pipe(fds) != 0) return report_message(std::string("cannot create a pipe: ") + std::strerror(errno));
+  std::fflush(nullptr);
+  const pid_t pid = ::fork();
+  if (pid < 0) return report_message(std::string("cannot start the import: ") + std::strerror(errno));
+  if (pid == 0) {
+    ::close(fds[0]);
+    int code = kExitInternal;
+    try {
+      code = import_and_write(args, options, grid, names_out, fds[1]);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "voxvis: internal error: %s\n", e.what());
+    }
+    std::fflush(nullptr);
+    ::_exit(code);
+  }
+  ::close(fds[1]);
+  // The file being read: the last line the child announced.
+  std::string announced, current = args.models.empty() ? std::string() : args.models.front();
+  const auto start = std::chrono::steady_clock::now();
+  bool timed_out = false;
+  for (;;) {
+    int wait_ms = -1;
+    if (args.timeout > 0.0) {
+      const double left = args.timeout - std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      if (left <= 0.0) {
+        timed_out = true;
+        break;
+      }
+      wait_ms = static_cast<int>(std::min(left * 1000.0 + 1.0, 60'000.0));
+    }
+    pollfd p{fds[0], POLLIN, 0};
+    const int ready = ::poll(&p, 1, wait_ms);
+    if (ready < 0 && errno == EINTR) continue;
+    if (ready <= 0) continue;  // The deadline is checked above.
+    char buf[4096];
+    const ssize_t n = ::read(fds[0], buf, sizeof buf);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) break;  // The child is done (or closed the pipe in dying).
+    announced.append(buf, static_cast<std::size_t>(n));
+    for (std::size_t nl; (nl = announced.find('\n')) != std::string::npos; announced.erase(0, nl + 1))
+      current = announced.substr(0, nl);
+  }
+  ::close(fds[0]);
+  if (timed_out) ::kill(pid, SIGKILL);
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (!timed_out && WIFEXITED(status)) return WEXITSTATUS(status);
+  // The child died: its temporaries (OutputFile's "<path>.tmp-<pid>") go.
+  for (const std::string& out : {args.scene_out, names_out})
+    std::remove((out + ".tmp-" + std::to_string(static_cast<long>(pid))).c_str());
+  if (timed_out)
+    return report(FormatError{current, 0, "",
+                              "no result after " + number_text(args.timeout) +
+                                  " s (--timeout): the model reader is stuck on this file (a malformed file can make "
+                                  "it loop forever); give a larger --timeout if the file is only large"});
+  const int sig = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
+  if (sig == SIGKILL)
+    return report(FormatError{current, 0, "", "the import was killed (" + signal_text(sig) +
+                                                  "), most likely for running out of memory on this file"});
+  return report(FormatError{current, 0, "",
+                            "the model reader crashed on this file (" + signal_text(sig) +
+                                "): it is malformed, or uses a feature the reader (assimp) mishandles"});
+}
+
+}  // namespace
 
 }  // namespace voxvis::cli

@@ -20,6 +20,7 @@ struct ImportArgs {
   std::string grid;                   ///< "NX,NY,NZ"; empty: the engine's choice (or --voxel-size).
   std::optional<double> voxel_size;   ///< World units; the grid follows from the bounds.
   double margin = 0.02;               ///< Bounds' margin per side, a fraction of the largest extent.
+  double timeout = 600.0;             ///< Seconds the import may take; 0: no limit.
   bool quiet = false;
 };
 

@@ -303,13 +303,20 @@ int run(int argc, char** argv) {
                          "Bounds around the models, per side, as a fraction of their largest extent")
       ->type_name("FRACTION")
       ->capture_default_str();
+  import_cmd->add_option("--timeout", imp.timeout,
+                         "Seconds the import may take (0: no limit); a model reader stuck on a malformed file is "
+                         "stopped with an error naming the file")
+      ->type_name("SECONDS")
+      ->capture_default_str();
   import_cmd->add_flag("-q,--quiet", imp.quiet, "No progress or summary on stderr");
   import_cmd->footer(
       "Ids are given in a stable order: files as listed, nodes depth first (children in\n"
       "the file's order), meshes in their node's order. Static objects have their node\n"
       "transforms baked into the vertices; dynamic ones keep their node's translation,\n"
       "rotation and uniform scale as centre, rotation and scale. Degenerate triangles,\n"
-      "points and lines are skipped and counted (docs/importing.md).\n"
+      "points and lines are skipped and counted (docs/importing.md). The models are read\n"
+      "in a child process: a reader that crashes or hangs on a malformed file becomes an\n"
+      "error naming the file.\n"
       "Examples:\n"
       "  voxvis import level.glb --scene-out level.json\n"
       "  voxvis import house.ifc props.obj --scene-out s.json --split meshes --first-id 100\n"

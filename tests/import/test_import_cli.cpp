@@ -183,5 +183,38 @@ TEST_F(ImportCli, RefusalsNameTheProblem) {
   EXPECT_EQ(files(), (std::vector<std::string>{"bad.gltf", "level.gltf", "lines.obj"}));
 }
 
+// assimp 5.2.5 loops forever on a PLY header whose "end_header" line goes on
+// (found by fuzz_import), and crashes on a glTF skin whose accessors lack
+// their component type (the sample simple_skin.gltf with three keys
+// changed, as the fuzzer left it). `voxvis import` reads models in a child
+// process: both end in an error naming the file.
+TEST_F(ImportCli, AReaderThatHangsOrCrashesIsStoppedNamingTheFile) {
+  spit(path("hang.ply"),
+       "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+       "element face 1\nproperty list uchar int vertex_indices\nend_headerx\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+  Result r = run({"import", path("hang.ply"), "--scene-out", path("s.json"), "--timeout", "2"});
+  expect_refused(r, path("hang.ply") + ": no result after 2 s (--timeout)");
+  EXPECT_LT(r.seconds, 30.0);
+
+  const std::string skin = test_model("glTF2/simple_skin/simple_skin.gltf");
+  if (skin.empty()) GTEST_SKIP() << "assimp-testmodels is not installed (/usr/share/assimp/models)";
+  std::string text = slurp(skin);
+  for (const auto& [from, to] : {std::pair<std::string, std::string>{"\"POSITION\" : 1", "\"POSITION\" : 0"},
+                                 {"\"inverseBindMatrices\"", "\"inverseBindMaurices\""},
+                                 {"\"byteOffset\" : 160,\n    \"componentType\"", "\"byteOffset\" : 160,\n    \"componentTypm\""}}) {
+    const std::size_t at = text.find(from);
+    ASSERT_NE(at, std::string::npos) << from;
+    text.replace(at, from.size(), to);
+  }
+  spit(path("crash.gltf"), text);
+  r = run({"import", path("crash.gltf"), "--scene-out", path("s.json")});
+  EXPECT_EQ(r.signal, 0) << r.err;
+  EXPECT_EQ(r.status, 2) << r.err;
+  // Either the reader crashed (assimp 5.2.5) or, fixed, refused the file.
+  EXPECT_THAT(r.err, HasSubstr("voxvis: error: " + path("crash.gltf") + ": "));
+  EXPECT_FALSE(std::filesystem::exists(path("s.json")));
+  EXPECT_EQ(files(), (std::vector<std::string>{"crash.gltf", "hang.ply"}));
+}
+
 }  // namespace
 }  // namespace voxvis::test
