@@ -287,8 +287,9 @@ TEST_F(Import, BadFilesAreRefusedNamingTheFile) {
   }
   // assimp's glTF reader drops a face whose index is out of range (12
   // triangles, 11 imported) and refuses a mesh left without faces.
-  if (const std::string one_bad = test_model("glTF2/IndexOutOfRange/IndexOutOfRange.gltf"); !one_bad.empty())
+  if (const std::string one_bad = test_model("glTF2/IndexOutOfRange/IndexOutOfRange.gltf"); !one_bad.empty()) {
     EXPECT_EQ(triangles(import_ok({one_bad})), 11u);
+  }
   const std::string bad_ref = test_model("glTF2/IndexOutOfRange/AllIndicesOutOfRange.gltf");
   const std::string infinite = test_model("glTF2/BoxWithInfinites-glTF-Binary/BoxWithInfinites.glb");
   for (const std::string& model : {bad_ref, infinite}) {
