@@ -183,6 +183,53 @@ TEST_F(ImportCli, RefusalsNameTheProblem) {
   EXPECT_EQ(files(), (std::vector<std::string>{"bad.gltf", "level.gltf", "lines.obj"}));
 }
 
+// A scene file that refers to models beside it (docs/formats.md, "Models by
+// reference"): the commands that read scenes load them through the importer.
+TEST_F(ImportCli, ScenesReferToModelsBesideThem) {
+  std::filesystem::create_directories(path("level"));
+  spit(path("level/level.gltf"), level_gltf());
+  spit(path("level/s.json"), R"({
+  "format": "voxvis-scene/1",
+  "bounds": {"min": [-2, -2, -8], "max": [14, 8, 6]},
+  "objects": [
+    {"id": 1, "shape": "mesh", "model": "level.gltf"},
+    {"id": 2, "shape": "mesh", "model": "level.gltf", "model_name": "Wall", "center": [0, 0, 3]},
+    {"id": 3, "shape": "mesh", "model": "level.gltf", "model_name": "Mover", "dynamic": true, "max_speed": 1}
+  ]
+}
+)");
+  spit(path("level/s.jsonl"),
+       "{\"t\": 0, \"eye\": [10.5, 1, 8], \"dir\": [0, 0, -1], \"up\": [0, 1, 0], \"fov_y_deg\": 60, "
+       "\"aspect\": 1, \"near\": 0.05, \"far\": 100}\n");
+  Result r = run({"replay", "--scene", path("level/s.json"), "--frames", path("level/s.jsonl"), "-q"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  const nlohmann::json out = nlohmann::json::parse(lines_of(r.out).at(0));
+  EXPECT_EQ(out["pvs"], nlohmann::json::array({1, 2, 3}));
+  expect_no_misses("level/s.json", "level/s.jsonl");
+
+  // A model that is not there: the object's line and the resolved path.
+  spit(path("level/bad.json"), R"({
+  "format": "voxvis-scene/1",
+  "bounds": {"min": [0, 0, 0], "max": [1, 1, 1]},
+  "objects": [
+    {"id": 1, "shape": "mesh", "model": "gone.glb"}
+  ]
+}
+)");
+  r = run({"replay", "--scene", path("level/bad.json"), "--frames", path("level/s.jsonl"), "-q"});
+  EXPECT_EQ(r.status, 2) << r.err;
+  EXPECT_THAT(r.err, HasSubstr(path("level/bad.json") + ":5: objects[0].model: cannot load '" + path("level/gone.glb") +
+                               "': cannot open"));
+  // Another format beside it.
+  spit(path("level/tri.ply"),
+       "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+       "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+  spit(path("level/ply.json"), R"({"format": "voxvis-scene/1", "bounds": {"min": [0, 0, 0], "max": [1, 1, 1]},
+  "objects": [{"id": 1, "shape": "mesh", "model": "tri.ply"}]})");
+  r = run({"replay", "--scene", path("level/ply.json"), "--frames", path("level/s.jsonl"), "-q"});
+  EXPECT_EQ(r.status, 0) << r.err;
+}
+
 // assimp 5.2.5 loops forever on a PLY header whose "end_header" line goes on
 // (found by fuzz_import), and crashes on a glTF skin whose accessors lack
 // their component type (the sample simple_skin.gltf with three keys
