@@ -73,7 +73,7 @@ int import_and_write(const ImportArgs& args, import::ImportOptions options, cons
 
 /// Runs import_and_write in a child process and waits for it at most
 /// args.timeout seconds. assimp reads files voxvis does not control, and a
-/// malformed one can crash or hang it (docs/fuzzing.md, "Findings"): the
+/// malformed one can crash or hang it (docs/fuzzing.md, "Findings in assimp"): the
 /// child's death or a timeout becomes an error naming the file being read,
 /// and the output files' temporaries are removed.
 int supervise(const ImportArgs& args, const import::ImportOptions& options, const int grid[3],

@@ -11,7 +11,7 @@
 //    require), the counts adding up, and a dynamic import (every object
 //    named dynamic) places every vertex where the static import put it.
 // assimp is Debian's, not instrumented: a crash inside it shows as a crash
-// with its frames in libassimp.so (docs/fuzzing.md, "Findings").
+// with its frames in libassimp.so (docs/fuzzing.md, "Findings in assimp").
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
