@@ -288,7 +288,7 @@ int run(int argc, char** argv) {
   import_cmd->add_option("--dynamic", imp.dynamic,
                          "Objects that move: those whose name, node name or node path is NAME (each NAME must "
                          "match one); placed by their node's translation, rotation and scale")
-      ->type_name("NAME...");
+      ->type_name("NAME");
   import_cmd->add_option_function<double>(
                 "--max-speed", [&imp](const double& v) { imp.max_speed = v; },
                 "The dynamic objects' speed bound, world units per second (required with --dynamic)")
