@@ -14,6 +14,7 @@
 #include <glm/geometric.hpp>
 
 #include "numeric.h"
+#include "mesh_interior.h"
 #include "opaque_boxes.h"
 #include "scene_impl.h"
 #include "tri_box.h"
@@ -384,8 +385,19 @@ std::uint64_t dynamic_entries(const Scene::Impl& s, const Obj& o) {
 /// SceneCost; the refusal when it exceeds the meter's limit.
 /// `counted`: objects counted so far (all: the figure is the scene's; fewer:
 /// a lower bound, and a refusal says so).
+/// What meshes add with the buffer on (bytes): the scene's (static meshes'
+/// placed vertices, their triangles' brick entries and the bricks' offsets)
+/// and a worker's (a drawn mark per static triangle, a dynamic mesh's
+/// placed vertices while drawn).
+struct MeshCost {
+  std::uint64_t bytes = 0, scratch = 0;
+};
+
+bool count_triangle_bricks(const Scene::Impl& s, const Obj& o, BuildMeter& meter, std::uint64_t* n);
+
 Status scene_cost(const Scene::Impl& s, const std::array<std::uint64_t, detail::kMaxLevels>& per_level,
-                  std::uint64_t dyn_entries, const BuildMeter& meter, SceneCost* cost, std::size_t counted) {
+                  std::uint64_t dyn_entries, const BuildMeter& meter, SceneCost* cost, std::size_t counted,
+                  const MeshCost& mesh = {}) {
   const auto nvox = static_cast<std::uint64_t>(s.spec.voxel_count());
   const bool buffer = s.options.occlusion_buffer > 0;
   std::uint64_t entries = 0, offsets = 0;
@@ -426,7 +438,7 @@ Status scene_cost(const Scene::Impl& s, const std::array<std::uint64_t, detail::
                 (bricks > 0 && s.pyr.levels > 2 ? 8 * s.pyr.cells(2) : 0) + 128 * (bricks + coarse) +
                 64 * dyn_entries + 64 * dynamic + (buffer ? 8 * cells + (bricks > 0 ? 12 * cells : 0) : 0) +
                 (buffer ? 4 * (per_level[0] + 2 * (s.pyr.cells(1) + 1)) + 4 * boxes : 0) +
-                objects * (sizeof(Obj) + 48) + (1u << 16);
+                objects * (sizeof(Obj) + 48) + mesh.bytes + (1u << 16);
   // A worker's scratch: the voxel traversal's stamps (a byte a voxel, the
   // buffer off); per object a PVS mark and a frustum mark (8) and its place
   // in the PVS (4, doubled by the list's growth); per dynamic object its
@@ -435,7 +447,7 @@ Status scene_cost(const Scene::Impl& s, const std::array<std::uint64_t, detail::
   // frame saw (8) and its place in their list (4, doubled), per coarser
   // cell its place in the cells seen whole (8, doubled).
   cost->scratch_bytes = (buffer ? 0 : nvox) + 16 * objects + 16 * dynamic + 4 * boxes + 4 * cells +
-                        16 * bricks + 16 * coarse;
+                        16 * bricks + 16 * coarse + mesh.scratch;
   cost->work = meter.steps() + nvox * 2;
   if (meter.max_bytes() > 0 && cost->bytes > meter.max_bytes()) {
     const std::string grid = std::to_string(s.res.x) + "x" + std::to_string(s.res.y) + "x" + std::to_string(s.res.z);
@@ -464,23 +476,39 @@ using LevelCounts = std::array<std::uint64_t, detail::kMaxLevels>;
 Status count_cost(const Scene::Impl& s, BuildMeter& meter, SceneCost* cost, LevelCounts* counts = nullptr) {
   LevelCounts per_level{};
   std::uint64_t dyn = 0;
+  MeshCost mesh;
+  const bool buffer = s.options.occlusion_buffer > 0;
+  std::uint64_t widest = 0;  // Vertices of the largest dynamic mesh.
   // The grid alone may be over the limit: refused before any object is looked at.
   if (Status st = scene_cost(s, per_level, 0, meter, cost, 0); !st) return st;
   for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
     const Obj& o = s.objs[slot];
     if (o.dynamic) {
       dyn += dynamic_entries(s, o);
+      if (o.shape == Shape::Mesh && buffer) mesh.bytes += 20 * o.mesh->triangles.size();
+      if (o.shape == Shape::Mesh && buffer && o.mesh->vertices.size() > widest) {
+        mesh.scratch += 24 * (o.mesh->vertices.size() - widest);
+        widest = o.mesh->vertices.size();
+      }
       if (!meter.tick(8)) return build_cancelled();
       continue;
     }
     if (!static_cells(s, slot, meter, [&](int l, const glm::ivec3&) { ++per_level[static_cast<std::size_t>(l)]; }))
       return build_cancelled();
+    if (o.shape == Shape::Mesh && buffer) {
+      std::uint64_t entries = 0;
+      if (!count_triangle_bricks(s, o, meter, &entries)) return build_cancelled();
+      if (mesh.bytes == 0) mesh.bytes = 4 * (s.pyr.cells(1) + 1);
+      // Placed vertices, brick entries, the quad pairing (per triangle).
+      mesh.bytes += 24 * o.mesh->vertices.size() + sizeof(detail::TriRef) * entries + 20 * o.mesh->triangles.size();
+      mesh.scratch += 4 * o.mesh->triangles.size();
+    }
     // Stop as soon as the limit is passed: the count costs no more than
     // the budget it is checked against.
-    if (Status st = scene_cost(s, per_level, dyn, meter, cost, slot + 1); !st) return st;
+    if (Status st = scene_cost(s, per_level, dyn, meter, cost, slot + 1, mesh); !st) return st;
   }
   if (counts) *counts = per_level;
-  return scene_cost(s, per_level, dyn, meter, cost, s.objs.size());
+  return scene_cost(s, per_level, dyn, meter, cost, s.objs.size(), mesh);
 }
 
 /// Builds the static id lists from the counts per level: a pass over the
@@ -552,7 +580,8 @@ void build_static_masks(Scene::Impl& s) {
   for (int z = 0; z < s.res.z; ++z)
     for (int y = 0; y < s.res.y; ++y)
       for (int x = 0; x < s.res.x; ++x)
-        if (s.vflags[static_cast<std::size_t>(s.index(x, y, z))] & (Scene::Impl::kStaticIds | Scene::Impl::kStaticOpaque))
+        if (s.vflags[static_cast<std::size_t>(s.index(x, y, z))] &
+            (Scene::Impl::kStaticIds | Scene::Impl::kStaticOpaque | Scene::Impl::kMeshInside))
           s.static_mask[1][s.pyr.index(1, glm::ivec3(x, y, z) >> detail::kCellShift)] |= bit(glm::ivec3(x, y, z));
   for (int l = 1; l + 1 < s.pyr.levels; ++l) {
     const detail::IdLists& lists = s.static_lists[static_cast<std::size_t>(l)];
@@ -660,6 +689,197 @@ void build_brick_lists(Scene::Impl& s) {
   }
 }
 
+/// Calls emit(brick, triangle) for every brick each triangle of static
+/// mesh `o` meets (the separating-axis test against the brick grown as
+/// mesh_voxels grows voxels). False when cancelled.
+template <class Emit>
+bool mesh_triangle_bricks(const Scene::Impl& s, const Obj& o, BuildMeter& meter, Emit&& emit) {
+  const int side = 1 << detail::kBrickShift;
+  const glm::ivec3 bres = s.pyr.res[1];
+  const ObjectDesc d = o.mesh_desc();
+  const Mesh& mesh = *o.mesh;
+  std::vector<Vec3> g(mesh.vertices.size());
+  for (std::size_t i = 0; i < g.size(); ++i) g[i] = s.to_grid(place(d, mesh.vertices[i]));
+  {
+    const double sl = o.mesh_allowance() + s.slop(max_abs(o.center) + max_abs(o.half));
+    const Vec3 grow = sl * s.inv_vs + 1e-9;
+    const Vec3 half = Vec3(0.5 * side) + grow;
+    for (std::uint32_t t = 0; t < mesh.triangles.size(); ++t) {
+      const auto& tri = mesh.triangles[t];
+      const Vec3 &a = g[tri[0]], &b = g[tri[1]], &c = g[tri[2]];
+      const Vec3 lo = glm::min(a, glm::min(b, c)) - grow, hi = glm::max(a, glm::max(b, c)) + grow;
+      glm::ivec3 b0, b1;
+      bool empty = false;
+      for (int k = 0; k < 3; ++k) {
+        // Brick i spans [side i, side (i+1)].
+        b0[k] = clamp_floor(std::ceil(lo[k] / side) - 1.0, 0, bres[k] - 1);
+        b1[k] = clamp_floor(hi[k] / side, -1, bres[k] - 1);
+        empty = empty || hi[k] < 0.0 || lo[k] > s.res[k];
+      }
+      if (empty) continue;
+      std::uint64_t n = 0;
+      for (int z = b0.z; z <= b1.z; ++z)
+        for (int y = b0.y; y <= b1.y; ++y)
+          for (int x = b0.x; x <= b1.x; ++x) {
+            ++n;
+            const Vec3 centre = (Vec3(x, y, z) + 0.5) * static_cast<double>(side);
+            if (detail::triangle_meets_box(a, b, c, centre, half)) emit(s.pyr.index(1, glm::ivec3(x, y, z)), t);
+          }
+      if (!meter.tick(n + 1)) return false;
+    }
+  }
+  return true;
+}
+
+/// The entries mesh_triangle_bricks makes for static mesh `o`.
+bool count_triangle_bricks(const Scene::Impl& s, const Obj& o, BuildMeter& meter, std::uint64_t* n) {
+  return mesh_triangle_bricks(s, o, meter, [&](std::size_t, std::uint32_t) { ++*n; });
+}
+
+/// The interiors of closed static meshes, with the buffer on: every voxel
+/// some closed mesh's triangles touch gets kMeshTouched (mesh_voxels, the
+/// exact triangle-box test grown by the rounding allowance); then every
+/// voxel of a closed mesh's range that OpenVDB puts inside and that no
+/// closed mesh touches gets kMeshInside (mesh_interior.h). Those voxels are
+/// covered with boxes appended to opaque_boxes and listed per brick
+/// (brick_mesh_boxes). Needs pair_mesh_triangles first (Obj::outward).
+Status build_mesh_interiors(Scene::Impl& s, BuildMeter& meter) {
+  std::vector<std::uint32_t> meshes;
+  for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
+    const Obj& o = s.objs[slot];
+    // Closed (pair_mesh_triangles) and enclosing a volume.
+    if (o.dynamic || o.shape != Shape::Mesh || o.outward == 0) continue;
+    meshes.push_back(slot);
+    if (!s.box_inside_grid(o.box_lo(), o.box_hi())) s.closed_mesh_beyond_grid = true;
+    if (!mesh_voxels(s, o, meter, [&](int, const glm::ivec3& v) {
+          s.vflags[static_cast<std::size_t>(s.index(v.x, v.y, v.z))] |= Scene::Impl::kMeshTouched;
+        }))
+      return build_cancelled();
+  }
+  bool any = false;
+  for (const std::uint32_t slot : meshes) {
+    const Obj& o = s.objs[slot];
+    const ObjectDesc d = o.mesh_desc();
+    std::vector<Vec3> g(o.mesh->vertices.size());
+    for (std::size_t i = 0; i < g.size(); ++i) g[i] = s.to_grid(place(d, o.mesh->vertices[i]));
+    const VoxBox range = s.touch_range(o.box_lo(), o.box_hi(), s.slop(max_abs(o.center) + max_abs(o.half)));
+    detail::inside_voxel_centres(g, *o.mesh, range, [&](int x, int y, int z) {
+      std::uint8_t& f = s.vflags[static_cast<std::size_t>(s.index(x, y, z))];
+      if (!(f & Scene::Impl::kMeshTouched)) {
+        f |= Scene::Impl::kMeshInside;
+        any = true;
+      }
+    });
+    const glm::ivec3 n = range.empty() ? glm::ivec3(0) : range.hi - range.lo + 1;
+    if (!meter.tick(static_cast<std::uint64_t>(n.x) * static_cast<std::uint64_t>(n.y) * static_cast<std::uint64_t>(n.z) +
+                    4 * o.mesh->triangles.size()))
+      return build_cancelled();
+  }
+  if (!any) return Status::Ok();
+  std::vector<detail::VoxBox> boxes;
+  std::vector<std::uint32_t> owner;
+  detail::cover_with_boxes(s.res, s.vflags, Scene::Impl::kMeshInside, kOpaqueBoxSide, &boxes, &owner);
+  const auto first = static_cast<std::uint32_t>(s.opaque_boxes.size());
+  s.opaque_boxes.insert(s.opaque_boxes.end(), boxes.begin(), boxes.end());
+  // Per brick, the boxes owning its interior voxels, each once.
+  detail::IdLists& lists = s.brick_mesh_boxes;
+  lists.offsets.assign(1, 0);
+  lists.ids.clear();
+  std::vector<std::uint32_t> mark(boxes.size(), ~0u);
+  const glm::ivec3 bres = s.pyr.res[1];
+  for (int bz = 0; bz < bres.z; ++bz)
+    for (int by = 0; by < bres.y; ++by)
+      for (int bx = 0; bx < bres.x; ++bx) {
+        const auto tag = static_cast<std::uint32_t>(lists.offsets.size() - 1);
+        const glm::ivec3 o = glm::ivec3(bx, by, bz) << detail::kBrickShift;
+        const glm::ivec3 end = glm::min(o + (1 << detail::kBrickShift), s.res);
+        for (int z = o.z; z < end.z; ++z)
+          for (int y = o.y; y < end.y; ++y)
+            for (int x = o.x; x < end.x; ++x) {
+              const std::uint32_t b = owner[static_cast<std::size_t>(s.index(x, y, z))];
+              if (b == detail::kNoBox || mark[b] == tag) continue;
+              mark[b] = tag;
+              lists.ids.push_back(first + b);
+            }
+        lists.offsets.push_back(static_cast<std::uint32_t>(lists.ids.size()));
+      }
+  return Status::Ok();
+}
+
+/// Pairs every mesh's triangles into quads (Obj::quads) and finds whether
+/// it is closed and which way it runs (Obj::outward), once a mesh.
+void pair_mesh_triangles(Scene::Impl& s, BuildMeter& meter) {
+  struct Done {
+    std::shared_ptr<const detail::MeshQuads> quads;
+    std::int8_t outward = 0;
+  };
+  std::unordered_map<const Mesh*, Done> done;
+  for (Obj& o : s.objs) {
+    if (o.shape != Shape::Mesh) continue;
+    auto [it, fresh] = done.try_emplace(o.mesh.get());
+    if (fresh) {
+      const Mesh& m = *o.mesh;
+      it->second.quads = std::make_shared<const detail::MeshQuads>(detail::pair_triangles(m));
+      if (detail::mesh_closed(m)) {
+        // Six times the signed volume (divergence theorem), about the
+        // vertices' centroid to keep the products small.
+        const Vec3 c = o.mesh_centroid;
+        double vol = 0.0;
+        for (const auto& t : m.triangles)
+          vol += glm::dot(m.vertices[t[0]] - c, glm::cross(m.vertices[t[1]] - c, m.vertices[t[2]] - c));
+        it->second.outward = vol > 0.0 ? 1 : vol < 0.0 ? -1 : 0;
+      }
+      meter.tick(8 * m.triangles.size() + 1);
+    }
+    o.quads = it->second.quads;
+    o.outward = it->second.outward;
+    if (!o.dynamic && o.outward != 0) s.any_closed_mesh = true;
+  }
+}
+
+/// The static mesh triangles of each brick (Scene::Impl::brick_tris), for
+/// the cell traversal with the buffer on: counted, then filled.
+Status build_brick_triangles(Scene::Impl& s, BuildMeter& meter) {
+  std::uint64_t total = 0;
+  for (Obj& o : s.objs) {
+    if (o.dynamic || o.shape != Shape::Mesh) continue;
+    o.tri_base = static_cast<std::uint32_t>(total);
+    total += o.mesh->triangles.size();
+    if (total > std::numeric_limits<std::uint32_t>::max())
+      return Status::Exhausted("grid", "static meshes hold more than 2^32 triangles in all");
+  }
+  if (total == 0) return Status::Ok();
+  s.static_triangles = static_cast<std::uint32_t>(total);
+  std::vector<std::uint32_t>& off = s.brick_tri_offsets;
+  off.assign(s.pyr.cells(1) + 1, 0);
+  std::uint64_t entries = 0;
+  auto static_mesh = [](const Obj& o) { return !o.dynamic && o.shape == Shape::Mesh; };
+  for (const Obj& o : s.objs)
+    if (static_mesh(o) && !mesh_triangle_bricks(s, o, meter, [&](std::size_t b, std::uint32_t) {
+          ++off[b + 1];
+          ++entries;
+        }))
+      return build_cancelled();
+  if (entries > std::numeric_limits<std::uint32_t>::max())
+    return Status::Exhausted("grid", "static mesh triangles meet more than 2^32 bricks in all; choose a coarser grid");
+  for (std::size_t i = 1; i < off.size(); ++i) off[i] += off[i - 1];
+  s.brick_tris.resize(static_cast<std::size_t>(entries));
+  std::vector<std::uint32_t> next(off.begin(), off.end() - 1);
+  for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
+    Obj& o = s.objs[slot];
+    if (!static_mesh(o)) continue;
+    if (!mesh_triangle_bricks(s, o, meter, [&](std::size_t b, std::uint32_t t) {
+          s.brick_tris[next[b]++] = detail::TriRef{slot, t};
+        }))
+      return build_cancelled();
+    // The vertices the buffer draws, placed as the bricks were found.
+    const ObjectDesc d = o.mesh_desc();
+    o.placed.resize(o.mesh->vertices.size());
+    for (std::size_t i = 0; i < o.placed.size(); ++i) o.placed[i] = place(d, o.mesh->vertices[i]);
+  }
+  return Status::Ok();
+}
+
 }  // namespace
 
 Status Scene::estimate(const SceneDesc& desc, const SceneOptions& options, SceneCost* out,
@@ -713,14 +933,18 @@ Status Scene::create(const SceneDesc& desc, const SceneOptions& options, std::un
         if (s.in_one_ball(first, n, x, y, z)) s.vflags[i] |= Impl::kInOneBall;
       }
     }
-  if (s.options.occlusion_buffer > 0)
+  if (s.options.occlusion_buffer > 0) {
     detail::cover_with_boxes(s.res, s.vflags, Impl::kStaticOpaque, kOpaqueBoxSide, &s.opaque_boxes,
                              &s.opaque_owner);
+    pair_mesh_triangles(s, meter);
+    if (Status st = build_mesh_interiors(s, meter); !st) return st;
+  }
   // The cell traversal's summaries: only the buffer's traversal reads them.
   const bool cells = s.options.occlusion_buffer > 0;
   if (cells) {
     build_static_masks(s);
     build_brick_lists(s);
+    if (Status st = build_brick_triangles(s, meter); !st) return st;
   }
 
   if (s.dynamic_count > 0) {

@@ -70,6 +70,8 @@ bool make_frame_geometry(const Scene::Impl& s, const WorldFrustum& wf, FrameGeom
   g.lf = make_local_frustum(wf, e, spec.voxel_size, far_eff, g.tol);
   g.depth_tol = 4.0 * g.tol * vmax + 1e-9 * world_scale;
   g.vs = spec.voxel_size;
+  g.outside_meshes = s.any_closed_mesh && mesh_tip_clear(s, wf);
+  g.mesh_interiors = g.outside_meshes && !s.brick_mesh_boxes.ids.empty();
   return true;
 }
 
@@ -90,9 +92,12 @@ void Collector::add(std::uint32_t slot) {
       return;
     }
     // Every object the frame finds is an occluder, at the position the
-    // scene has for it (the one it is visible at); meshes not yet (their
-    // box is not solid).
-    if (o.shape != Shape::Mesh) {
+    // scene has for it (the one it is visible at): a mesh by its triangles
+    // (a static one's are drawn brick by brick as the traversal reaches
+    // them, render_brick_triangles; its box is not solid).
+    if (o.shape == Shape::Mesh) {
+      if (o.dynamic) render_mesh(o);
+    } else {
       const ScopedTicks timed(w_.render_ticks);
       const bool wrote =
           o.shape == Shape::Sphere ? ob.render_sphere(o.center, o.radius) : ob.render_box(o.box_lo(), o.box_hi());
@@ -132,6 +137,97 @@ void Collector::render_opaque_box_at(std::uint32_t b) {
   const Vec3 hi = spec.bounds_min + Vec3(vb.hi + 1) * spec.voxel_size;
   const ScopedTicks timed(w_.render_ticks);
   if (w_.ob.render_box(lo, hi)) ++st_.ob_occluders;
+}
+
+bool mesh_tip_clear(const Scene::Impl& s, const WorldFrustum& wf) {
+  Vec3 lo = wf.eye, hi = wf.eye;
+  for (int k = 0; k < 4; ++k) {
+    const Vec3 c = wf.eye + wf.near * (wf.f + ((k & 1) ? 1.0 : -1.0) * wf.tan_x * wf.r + ((k & 2) ? 1.0 : -1.0) * wf.tan_y * wf.u);
+    lo = glm::min(lo, c);
+    hi = glm::max(hi, c);
+  }
+  if (!std::isfinite(lo.x + lo.y + lo.z + hi.x + hi.y + hi.z)) return false;
+  const double mag = max_abs(lo) + max_abs(hi);
+  // Grown by more than the rounding of the corners (a few ulps of mag).
+  const double grow = 1e-9 * mag + s.slop(mag);
+  if (s.closed_mesh_beyond_grid && !s.box_inside_grid(lo - grow, hi + grow)) return false;
+  const VoxBox vb = s.touch_range(lo - grow, hi + grow, s.slop(mag));
+  if (vb.empty()) return true;  // Wholly beyond the grid, and no closed mesh is.
+  const glm::ivec3 n = vb.hi - vb.lo + 1;
+  if (std::int64_t{n.x} * n.y * n.z > 4096) return false;
+  for (int z = vb.lo.z; z <= vb.hi.z; ++z)
+    for (int y = vb.lo.y; y <= vb.hi.y; ++y)
+      for (int x = vb.lo.x; x <= vb.hi.x; ++x)
+        if (s.vflags[static_cast<std::size_t>(s.index(x, y, z))] & (Scene::Impl::kMeshInside | Scene::Impl::kMeshTouched))
+          return false;
+  return true;
+}
+
+void Collector::render_brick_triangles(std::size_t bi) {
+  if (g_.mesh_interiors)
+    for (const std::uint32_t* p = s_.brick_mesh_boxes.begin(bi); p != s_.brick_mesh_boxes.end(bi); ++p)
+      render_opaque_box_at(*p);
+  if (s_.brick_tri_offsets.empty()) return;
+  const std::uint32_t first = s_.brick_tri_offsets[bi], last = s_.brick_tri_offsets[bi + 1];
+  if (first == last) return;
+  const ScopedTicks timed(w_.render_ticks);
+  for (std::uint32_t k = first; k < last; ++k) {
+    const TriRef& t = s_.brick_tris[k];
+    const Obj& o = s_.objs[t.slot];
+    std::uint32_t& seen = w_.tri_seen[o.tri_base + t.tri];
+    if (seen == w_.frame) continue;
+    seen = w_.frame;
+    const std::uint32_t partner = o.quads->partner[t.tri];
+    if (partner != MeshQuads::kNone) w_.tri_seen[o.tri_base + partner] = w_.frame;
+    render_triangle_of(o, o.placed.data(), t.tri);
+  }
+}
+
+void Collector::render_mesh(const Obj& o) {
+  const ScopedTicks timed(w_.render_ticks);
+  const ObjectDesc d = o.mesh_desc();
+  const Mesh& mesh = *o.mesh;
+  std::vector<Vec3>& p = w_.placed;
+  p.resize(mesh.vertices.size());
+  for (std::size_t i = 0; i < p.size(); ++i) p[i] = place(d, mesh.vertices[i]);
+  const std::uint32_t n = static_cast<std::uint32_t>(mesh.triangles.size());
+  for (std::uint32_t t = 0; t < n; ++t) {
+    const std::uint32_t partner = o.quads->partner[t];
+    if (partner == MeshQuads::kNone || partner > t) render_triangle_of(o, p.data(), t);
+  }
+}
+
+void Collector::render_triangle_of(const Obj& o, const Vec3* p, std::uint32_t t) {
+  const double err = o.mesh_allowance();
+  const std::uint32_t partner = o.quads->partner[t];
+  if (o.outward != 0 && g_.outside_meshes) {
+    // A closed mesh seen from outside: a ray meeting a triangle from behind
+    // (its outer side facing away) has met the mesh before. Leaving an
+    // occluder out is conservative whatever the eye.
+    const Vec3& eye = w_.ob.eye();
+    auto facing_away = [&](std::uint32_t k) {
+      const auto& a = o.mesh->triangles[k];
+      return o.outward * glm::dot(glm::cross(p[a[1]] - p[a[0]], p[a[2]] - p[a[0]]), p[a[0]] - eye) > 0.0;
+    };
+    if (facing_away(t) && (partner == MeshQuads::kNone || facing_away(partner))) return;
+  }
+  bool raised = false;
+  if (partner != MeshQuads::kNone) {
+    const auto& q = o.quads->quad[t];
+    const Vec3 corners[4] = {p[q[0]], p[q[1]], p[q[2]], p[q[3]]};
+    if (!w_.ob.render_quad(corners, err, &raised)) {
+      // Not drawable as one quad here (crossing the near plane, or its
+      // image not convex): its two triangles.
+      const auto& a = o.mesh->triangles[t];
+      const auto& b = o.mesh->triangles[partner];
+      raised = w_.ob.render_triangle(p[a[0]], p[a[1]], p[a[2]], err);
+      raised = w_.ob.render_triangle(p[b[0]], p[b[1]], p[b[2]], err) || raised;
+    }
+  } else {
+    const auto& a = o.mesh->triangles[t];
+    raised = w_.ob.render_triangle(p[a[0]], p[a[1]], p[a[2]], err);
+  }
+  if (raised) ++st_.ob_occluders;
 }
 
 bool Collector::front_blocked(const std::int64_t v[3], std::int64_t idx) const {

@@ -24,6 +24,12 @@ struct FrameGeometry {
   double tol = 0.0;                   ///< Rounding allowance, local grid units.
   double depth_tol = 0.0;             ///< Rounding allowance of depths, world units.
   Vec3 vs{1.0};                       ///< Voxel size, world units.
+  /// Whether the interiors of closed meshes occlude this frame: the eye and
+  /// the near plane lie in voxels outside every closed mesh (mesh_tip_clear).
+  bool mesh_interiors = false;
+  /// The same tip lies outside every closed static mesh (the scene has
+  /// one): closed meshes' triangles facing away from the eye are not drawn.
+  bool outside_meshes = false;
 
   std::int64_t gindex(const std::int64_t v[3]) const {
     return (E[0] + v[0]) + stride[1] * (E[1] + v[1]) + stride[2] * (E[2] + v[2]);
@@ -42,6 +48,15 @@ bool eye_too_far(const Vec3& eye_grid);
 /// The frame's geometry; false when the grid lies wholly before the near
 /// plane or behind the eye (nothing to traverse).
 bool make_frame_geometry(const Scene::Impl& s, const WorldFrustum& wf, FrameGeometry* g);
+
+/// Whether every voxel the frustum's tip (the eye and its near rectangle)
+/// may touch lies outside every closed static mesh: no closed mesh touches
+/// it and none puts it inside (kMeshTouched, kMeshInside), and, where the
+/// tip leaves the grid, no closed mesh reaches beyond it. Then a ray meets
+/// an interior voxel only after crossing its mesh's surface beyond the near
+/// plane (docs/design.md, "Meshes"). False when the tip spans more than
+/// 4,096 voxels (a near plane far larger than a voxel).
+bool mesh_tip_clear(const Scene::Impl& s, const WorldFrustum& wf);
 
 /// Whether the buffer proves an object (at the position the scene holds)
 /// hidden: a ball by its own outline, a box by itself (`fine`: see
@@ -70,6 +85,11 @@ class Collector {
   }
   /// Draws opaque box b (kNoBox: none), once a frame.
   void render_opaque_box_at(std::uint32_t b);
+  /// Draws the static mesh triangles meeting brick `bi` (Scene::Impl::
+  /// brick_tris), each once a frame, and the boxes of closed meshes'
+  /// interiors owning its voxels when the frame allows them
+  /// (FrameGeometry::mesh_interiors).
+  void render_brick_triangles(std::size_t bi);
   /// Whether the static opaque face neighbours of local voxel v on the eye's
   /// side hide it (idx: its grid index; docs/design.md, "Front neighbours").
   bool front_blocked(const std::int64_t v[3], std::int64_t idx) const;
@@ -88,6 +108,11 @@ class Collector {
   /// neighbours: then no point of o is visible though it touches voxels in
   /// view (a block just under the ground touches the air above it).
   bool own_voxels_hidden(const Obj& o) const;
+  /// Draws every triangle of dynamic mesh o at its current placement.
+  void render_mesh(const Obj& o);
+  /// Draws triangle t of mesh o (placed vertices p), with its partner as
+  /// one quad when it has one (mesh_pairs.h).
+  void render_triangle_of(const Obj& o, const Vec3* p, std::uint32_t t);
 
   const Scene::Impl& s_;
   Scratch::Impl& w_;

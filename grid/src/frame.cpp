@@ -316,7 +316,8 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
   } in_flight{s.frames_in_flight};
   Scratch::Impl& w = scratch.impl();
   if (w.trace != nullptr) w.trace->clear();
-  w.begin(s.objs.size(), s.opaque_boxes.size(), s.bricks.size(), s.cell_base[static_cast<std::size_t>(s.pyr.levels)]);
+  w.begin(s.objs.size(), s.opaque_boxes.size(), s.bricks.size(), s.cell_base[static_cast<std::size_t>(s.pyr.levels)],
+          s.static_triangles);
   FrameRun f{s, w, detail::make_world_frustum(camera), viewer, t, FrameStats{}, w.wake};
   std::uint64_t tick_split[2] = {0, 0};  // Traversal; beyond the grid and retest.
   bool expired = false;

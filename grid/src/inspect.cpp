@@ -85,7 +85,8 @@ void inspect_grid(const Scene& scene, const std::function<void(const GridRow&)>&
       const std::int64_t base = s.index(0, y, z);
       for (std::size_t x = 0; x < nx; ++x) {
         const auto i = static_cast<std::size_t>(base) + x;
-        opaque[x] = (s.vflags[i] & Scene::Impl::kStaticOpaque) ? 1 : 0;
+        opaque[x] = static_cast<std::uint8_t>(((s.vflags[i] & Scene::Impl::kStaticOpaque) ? GridRow::kCovered : 0) |
+                                              ((s.vflags[i] & Scene::Impl::kMeshInside) ? GridRow::kInsideMesh : 0));
         std::uint32_t n = 0;
         if (own.any())
           for (const std::uint32_t* p = own.begin(i); p != own.end(i); ++p) n += counted[*p];

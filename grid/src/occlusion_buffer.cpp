@@ -17,9 +17,6 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kEps = std::numeric_limits<double>::epsilon();
 constexpr double kMaxDouble = std::numeric_limits<double>::max();
 constexpr double kPi = 3.14159265358979323846;
-/// Relative allowance taken off every written bound: far above the rounding
-/// of the plane depths, far below any distance that matters.
-constexpr double kDepthSlack = 1e-7;
 /// A double bound times this and rounded to the nearest float is no larger
 /// than the bound (the rounding is at most 2^-24 relative).
 constexpr double kFloatDown = 1.0 - 0x1p-22;

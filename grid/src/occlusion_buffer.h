@@ -70,6 +70,10 @@
 
 namespace voxvis::detail {
 
+/// Relative allowance taken off every written bound: far above the rounding
+/// of the plane depths, far below any distance that matters.
+inline constexpr double kDepthSlack = 1e-7;
+
 /// Deliberate violations of the rules above, for the tests that show the ray
 /// caster catches a buffer that is not conservative. Never set by the engine.
 enum class BufferFault : std::uint8_t {
@@ -140,6 +144,7 @@ class OcclusionBuffer {
   void begin(const WorldFrustum& wf, int width);
   void end() { w_ = 0; }
   bool on() const { return w_ > 0; }
+  const Vec3& eye() const { return eye_; }
   int width() const { return w_; }
   int height() const { return h_; }
 
@@ -147,6 +152,19 @@ class OcclusionBuffer {
   /// it raised any pixel's bound.
   bool render_sphere(const Vec3& center, double radius);
   bool render_box(const Vec3& lo, const Vec3& hi);
+  /// Renders a triangle (world units) as an occluder: the part of it
+  /// beyond the near plane, a planar convex polygon of at most four
+  /// vertices, shrunk by its rounding allowance, at its plane's depth
+  /// (occlusion_triangle.cpp). Slivers too thin to trust and triangles seen
+  /// edge-on write nothing. `err` (world units) bounds how far each given
+  /// vertex may lie from the true one (a mesh's placement rounding).
+  bool render_triangle(const Vec3& a, const Vec3& b, const Vec3& c, double err = 0.0);
+  /// Renders two triangles sharing a side, (q0, q1, q3) and (q1, q2, q3),
+  /// as one convex occluder when the quad q0..q3 lies wholly beyond the near
+  /// plane and its image is convex (at the farther of the two planes along
+  /// each ray). False when it is not (then draw the triangles); `raised`:
+  /// whether it raised a bound. `err` as for render_triangle.
+  bool render_quad(const Vec3 q[4], double err, bool* raised);
 
   /// Whether the axis-aligned box with least corner eye + rel and extents
   /// `size` (world units) is hidden. `tol` bounds the error of `rel` and
@@ -201,6 +219,12 @@ class OcclusionBuffer {
   /// the eye, in order, at most 24) is met: one edge function per side.
   /// False (the occluder must not be drawn) when a side defines no plane.
   bool polygon_edges(const Vec3* v, int n, ConvexOccluder* occ) const;
+  /// Fills the convex polygon q[0..nq) (relative to the eye, beyond the near
+  /// plane, every ray within its sides meeting the occluder) at the least of
+  /// the reciprocal depths `planes`, whose relative error is `depth_err`;
+  /// shrunk first by the rounding allowance (`err`: the vertices' own
+  /// error, world units; `mag`: the magnitude of the coordinates).
+  bool fill_polygon(Vec3* q, int nq, const PixelAffine* planes, int np, double depth_err, double mag, double err);
   /// Renders a disc (centre relative to the eye, unit normal, radius) as an
   /// inscribed polygon at its plane's depth; w_max and slack as in
   /// ConvexOccluder.

@@ -43,7 +43,8 @@ double expiry_after(double now, double period) {
 Scratch::Scratch() : impl_(std::make_unique<Impl>()) {}
 Scratch::~Scratch() = default;
 
-void Scratch::Impl::begin(std::size_t objects, std::size_t boxes, std::size_t bricks, std::size_t cells) {
+void Scratch::Impl::begin(std::size_t objects, std::size_t boxes, std::size_t bricks, std::size_t cells,
+                          std::size_t triangles) {
   pvs.clear();
   deferred.clear();
   // A frame that ended early (an error) may have left its seen record.
@@ -55,6 +56,7 @@ void Scratch::Impl::begin(std::size_t objects, std::size_t boxes, std::size_t br
   if (obj_seen.size() < objects) obj_seen.resize(objects, 0);
   if (box_seen.size() < boxes) box_seen.resize(boxes, 0);
   if (cell_seen.size() < cells) cell_seen.resize(cells, 0);
+  if (tri_seen.size() < triangles) tri_seen.resize(triangles, 0);
   // Start the frame counter over before it wraps, so that no stale object
   // mark can ever match (stamp tags cycle separately, below).
   if (++frame == std::numeric_limits<std::uint32_t>::max()) {
@@ -62,6 +64,7 @@ void Scratch::Impl::begin(std::size_t objects, std::size_t boxes, std::size_t br
     std::fill(obj_seen.begin(), obj_seen.end(), 0u);
     std::fill(box_seen.begin(), box_seen.end(), 0u);
     std::fill(cell_seen.begin(), cell_seen.end(), 0u);
+    std::fill(tri_seen.begin(), tri_seen.end(), 0u);
     frame = 1;
   }
   pvs.clear();

@@ -33,6 +33,7 @@
 #include <vector>
 
 #include "cells.h"
+#include "mesh_pairs.h"
 #include "occlusion_buffer.h"
 #include "voxbox.h"
 #include "voxvis/mesh.h"
@@ -101,8 +102,10 @@ struct Obj {
   // centroid (radius: scale x reach, whatever the rotation), so that every
   // test made on an object's box bounds the mesh. Which voxels a static
   // mesh touches comes from its triangles (build.cpp, mesh_voxels). A mesh
-  // adds no opacity and is not drawn into the occlusion buffer: other
-  // objects hide it, it hides nothing (docs/design.md, "Meshes").
+  // adds no opacity; with the occlusion buffer on, its triangles are drawn
+  // into it: a static mesh's those of each brick the traversal reaches
+  // (Scene::Impl::brick_tris), a dynamic one's all at once when it enters
+  // the PVS (docs/design.md, "Meshes").
   std::shared_ptr<const Mesh> mesh;
   Vec3 mesh_origin{0.0};          ///< Where the model origin is (ObjectDesc::center, or the last move's).
   Quat mesh_rotation{1.0, 0.0, 0.0, 0.0};  ///< Unit.
@@ -112,6 +115,18 @@ struct Obj {
   /// magnitude, the size of the placement's arithmetic, for the rounding
   /// allowance of placed points.
   double mesh_extent = 0.0;
+  /// A static mesh with the buffer on: its placed vertices (world units, as
+  /// place() computes them), and where its triangles start in the scene's
+  /// numbering of static triangles (Scratch::Impl::tri_seen).
+  std::vector<Vec3> placed;
+  std::uint32_t tri_base = 0;
+  /// With the buffer on: its triangles paired into quads (mesh_pairs.h),
+  /// shared by the objects of one mesh.
+  std::shared_ptr<const MeshQuads> quads;
+  /// With the buffer on, for a closed mesh (mesh_interior.h): +1 when its
+  /// triangles run counter-clockwise seen from outside (its signed volume
+  /// is positive), -1 the other way; 0 for an open mesh.
+  std::int8_t outward = 0;
 
   Vec3 box_lo() const { return center - half; }
   Vec3 box_hi() const { return center + half; }
@@ -129,6 +144,12 @@ struct Obj {
   /// The rounding allowance of placed points: 64 ulps of the placement's
   /// magnitudes (a few ulps of them is the rounding).
   double mesh_allowance() const;
+};
+
+/// A triangle of a static mesh: the mesh's slot and the triangle's index.
+struct TriRef {
+  std::uint32_t slot;
+  std::uint32_t tri;
 };
 
 /// An entry of a brick: (slot << 1 | is_tbv) and the generation of the
@@ -224,6 +245,11 @@ struct Scratch::Impl {
   /// Whole cells of levels >= 2 this frame saw (empty space in view), as
   /// (level, cell index): recorded once per cell instead of per brick.
   std::vector<std::pair<std::uint8_t, std::uint32_t>> seen_cells;
+  /// Per triangle of the static meshes (Obj::tri_base): frame in which it
+  /// was drawn into the occlusion buffer.
+  std::vector<std::uint32_t> tri_seen;
+  /// A dynamic mesh's placed vertices, while its triangles are drawn.
+  std::vector<Vec3> placed;
   /// Per cell of levels 1 and up (Scene::Impl::cell_base): frame in which
   /// its static objects were collected.
   std::vector<std::uint32_t> cell_seen;
@@ -234,8 +260,10 @@ struct Scratch::Impl {
   FrameTrace* trace = nullptr;
 
   /// Starts a frame for a scene of `objects` slots, `boxes` opaque boxes,
-  /// `bricks` bricks and `cells` cells of levels >= 1.
-  void begin(std::size_t objects, std::size_t boxes, std::size_t bricks, std::size_t cells);
+  /// `bricks` bricks, `cells` cells of levels >= 1 and `triangles` static
+  /// mesh triangles drawn into the buffer.
+  void begin(std::size_t objects, std::size_t boxes, std::size_t bricks, std::size_t cells,
+             std::size_t triangles = 0);
   /// Starts the voxel traversal's stamps for a grid of `voxels` voxels: only
   /// frames that walk voxels (the buffer off) size, touch and clear them.
   void begin_voxels(std::size_t voxels);
@@ -270,6 +298,11 @@ struct Scene::Impl {
   /// A static opaque voxel wholly inside one static ball (read when the
   /// opaque boxes are chosen: build.cpp, redundant_boxes).
   static constexpr std::uint8_t kInOneBall = 16;
+  /// With the buffer on: a voxel wholly inside a closed static mesh (no
+  /// triangle touches it, OpenVDB's level set puts its centre inside), and
+  /// a voxel some closed static mesh's triangles touch (build.cpp,
+  /// build_mesh_interiors; docs/design.md, "Meshes").
+  static constexpr std::uint8_t kMeshInside = 32, kMeshTouched = 64;
   std::vector<std::uint8_t> vflags;
   detail::Pyramid pyr;
   /// Per level, the static objects stored there (level 0: voxels).
@@ -293,6 +326,22 @@ struct Scene::Impl {
   /// boxes, and each opaque voxel's owner box (opaque_boxes.h).
   std::vector<detail::VoxBox> opaque_boxes;
   std::vector<std::uint32_t> opaque_owner;
+  /// With the occlusion buffer on, per brick: the triangles of static meshes
+  /// that meet it (brick b holds brick_tris[brick_tri_offsets[b] ..
+  /// brick_tri_offsets[b+1])), drawn when the traversal reaches the brick; a
+  /// triangle is listed in every brick it meets and drawn once a frame.
+  std::vector<std::uint32_t> brick_tri_offsets;
+  std::vector<detail::TriRef> brick_tris;
+  std::uint32_t static_triangles = 0;  ///< Triangles of static meshes, all.
+  /// With the buffer on, per brick: the boxes of kMeshInside voxels
+  /// (indices into opaque_boxes, after the static ones) owning its voxels,
+  /// drawn only in frames whose eye and near plane lie outside every closed
+  /// mesh (FrameGeometry::mesh_interiors).
+  detail::IdLists brick_mesh_boxes;
+  /// A closed static mesh reaches beyond the grid box (then an eye beyond
+  /// it may be inside one).
+  bool closed_mesh_beyond_grid = false;
+  bool any_closed_mesh = false;  ///< A static mesh is closed (buffer on).
 
   // Dynamic layer (allocated only when the scene has dynamic objects).
   glm::ivec3 bricks_res{0};

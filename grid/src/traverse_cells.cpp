@@ -293,6 +293,10 @@ void CellTraversal::visit_brick(const glm::ivec3& c, bool layers, bool record) {
   st_.voxels_visited += static_cast<std::uint64_t>(__builtin_popcountll(s_.static_mask[1][bi]));
   for (const std::uint32_t* p = s_.brick_boxes.begin(bi); p != s_.brick_boxes.end(bi); ++p)
     col_.render_opaque_box_at(*p);
+  // The static mesh triangles meeting it. Drawn before its objects are
+  // tested: a mesh's own triangles lie inside its box, never strictly
+  // before it, so they cannot hide it (docs/design.md, "Meshes").
+  col_.render_brick_triangles(bi);
   for (const std::uint32_t* p = s_.brick_static.begin(bi); p != s_.brick_static.end(bi); ++p) col_.add(*p);
   // After its own occluders are drawn: a wall hides the layers behind it.
   if (layers) {
@@ -304,7 +308,9 @@ void CellTraversal::visit_brick(const glm::ivec3& c, bool layers, bool record) {
 
 std::ptrdiff_t CellTraversal::brick_load(std::size_t bi) const {
   const IdLists& own = s_.static_lists[1];
-  return (s_.brick_static.end(bi) - s_.brick_static.begin(bi)) + (s_.brick_boxes.end(bi) - s_.brick_boxes.begin(bi)) +
+  const std::ptrdiff_t tris =
+      s_.brick_tri_offsets.empty() ? 0 : std::ptrdiff_t{s_.brick_tri_offsets[bi + 1]} - s_.brick_tri_offsets[bi];
+  return tris + (s_.brick_static.end(bi) - s_.brick_static.begin(bi)) + (s_.brick_boxes.end(bi) - s_.brick_boxes.begin(bi)) +
          (own.any() ? own.end(bi) - own.begin(bi) : 0) + (has_dyn_ ? std::ptrdiff_t{s_.bricks[bi].live} : 0);
 }
 

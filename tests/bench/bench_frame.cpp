@@ -17,6 +17,11 @@
 //     the path over the surface or through a cave), make_city (8 x 8 blocks
 //     of box buildings with parked cars, driven through at street level).
 //
+//   indoor/meshes[/ob:W], city/meshes[/ob:W]
+//     The same levels and paths with every static box a mesh of 12
+//     triangles (a cube, placed at the box's centre): the mesh layout's cost
+//     against the box layout's.
+//
 //   Counters of both kinds:
 //       median_us, p99_us  engine time per frame (FrameStats::time_us)
 //       vfc_median_us      plain frustum culling of the same frames (every
@@ -78,6 +83,11 @@
 //     tick_median_ms, tick_p99_ms, busy (engine time over both workers' wall
 //     time), and per tick the TBVs renewed, created and revealed.
 //
+//   mesh_move/triangles:5120
+//     64 dynamic meshes (icospheres of 5,120 triangles, 6 voxels across)
+//     each moved by a voxel and turned per batch, no viewer: us_per_move
+//     (BM_MeshMove).
+//
 //   mesh_build/triangles:N
 //     One static mesh of N triangles (a terrain over 256 x 64 x 256 voxels):
 //     Scene::estimate and Scene::create's time, the voxels holding it, and a
@@ -102,6 +112,7 @@
 
 #include <glm/common.hpp>
 
+#include "meshes.h"
 #include "scenes.h"
 #include "voxvis/generate.h"
 #include "voxvis/mesh.h"
@@ -128,7 +139,7 @@ struct Recording {
   std::vector<double> in_view;
 };
 
-enum class Path { Walkthrough, Indoor, Surface, Cave, City };
+enum class Path { Walkthrough, Indoor, Surface, Cave, City, IndoorMeshes, CityMeshes };
 
 /// The exactly visible set is the ray caster's at 1024 x 576 jittered rays
 /// (one per cell) on every 20th frame. The caster samples, so this is a
@@ -145,10 +156,18 @@ Recording record(Path which) {
     out.frames = make_walkthrough(out.scene, WalkthroughParams{});
     if (out.frames.size() >= 2) out.dt = out.frames[1].t - out.frames[0].t;
   } else {
-    test::ScenePath p = which == Path::Indoor  ? test::make_indoor_level(6, 3, 200, 7)
-                        : which == Path::City  ? test::make_city(8, 200, 5)
-                                               : test::make_voxel_world(64, 200, which == Path::Cave, 11);
+    const bool indoor = which == Path::Indoor || which == Path::IndoorMeshes;
+    const bool city = which == Path::City || which == Path::CityMeshes;
+    test::ScenePath p = indoor ? test::make_indoor_level(6, 3, 200, 7)
+                        : city ? test::make_city(8, 200, 5)
+                               : test::make_voxel_world(64, 200, which == Path::Cave, 11);
     out.scene = std::move(p.scene);
+    if (which == Path::IndoorMeshes || which == Path::CityMeshes) {
+      // The same layout with every box a mesh of 12 triangles.
+      for (ObjectDesc& o : out.scene.objects)
+        if (o.shape == Shape::Box && !o.dynamic)
+          o = test::mesh_object(o.id, test::cube_mesh(o.half_extent), o.center, Quat(1.0, 0.0, 0.0, 0.0), 1.0);
+    }
     for (std::size_t k = 0; k < p.cameras.size(); ++k) {
       FrameInput f;
       f.t = static_cast<double>(k) * out.dt;
@@ -806,6 +825,53 @@ void BM_MeshBuild(benchmark::State& state, int triangles) {
   state.counters["first_frame_us"] = frame_us;
 }
 
+/// Moves of dynamic meshes of about `triangles` triangles (an icosphere of
+/// radius 3 voxels): 64 of them in a 128^3 grid, each moved by one voxel per
+/// batch, back and forth, turning as it goes, with no viewer (so every one
+/// stays discretized: the costly case, no TBV absorbs the move).
+void BM_MeshMove(benchmark::State& state, int levels) {
+  const std::shared_ptr<const Mesh> mesh = test::icosphere(levels);
+  SceneDesc desc;
+  desc.bounds_min = Vec3(0.0);
+  desc.bounds_max = Vec3(128.0);
+  desc.grid = glm::ivec3(128);
+  for (int k = 0; k < 64; ++k) {
+    ObjectDesc o = test::mesh_object(static_cast<ObjectId>(k + 1), mesh,
+                                     Vec3(12.0 + 14.0 * (k % 8), 64.0, 12.0 + 14.0 * (k / 8)), Quat(1.0, 0.0, 0.0, 0.0),
+                                     3.0);
+    o.dynamic = true;
+    o.max_speed = 100.0;
+    desc.objects.push_back(o);
+  }
+  std::unique_ptr<Scene> scene;
+  if (!Scene::create(desc, {}, &scene).ok) {
+    state.SkipWithError("create failed");
+    return;
+  }
+  std::vector<Move> moves(desc.objects.size());
+  double t = 0.0;
+  int step = 0;
+  for (auto _ : state) {
+    t += 0.05;
+    ++step;
+    for (std::size_t k = 0; k < moves.size(); ++k) {
+      moves[k].id = desc.objects[k].id;
+      moves[k].center = desc.objects[k].center + Vec3((step & 1) ? 1.0 : 0.0, 0.0, 0.0);
+      moves[k].has_rotation = true;
+      moves[k].rotation = test::rotation_about(Vec3(0.0, 1.0, 0.0), 0.1 * step);
+    }
+    MoveReport report;
+    if (!scene->apply_moves(t, moves, &report).ok) {
+      state.SkipWithError("apply_moves failed");
+      return;
+    }
+  }
+  state.counters["triangles"] = static_cast<double>(mesh->triangles.size());
+  state.counters["us_per_move"] =
+      benchmark::Counter(static_cast<double>(moves.size()), benchmark::Counter::kIsIterationInvariantRate |
+                                                                benchmark::Counter::kInvert);
+}
+
 void register_all() {
   // The occlusion buffer's widths (SceneOptions::occlusion_buffer), 0 = off.
   const int widths[] = {0, 64, 128, 256, 512};
@@ -813,7 +879,9 @@ void register_all() {
   const std::pair<const char*, Path> paths[] = {{"indoor", Path::Indoor},
                                                 {"voxel_world/surface", Path::Surface},
                                                 {"voxel_world/cave", Path::Cave},
-                                                {"city", Path::City}};
+                                                {"city", Path::City},
+                                                {"indoor/meshes", Path::IndoorMeshes},
+                                                {"city/meshes", Path::CityMeshes}};
   for (const auto& [name, which] : paths)
     for (int ob : widths)
       benchmark::RegisterBenchmark((name + suffix(ob)).c_str(), BM_Path, which, glm::ivec3(0), ob)
@@ -870,6 +938,7 @@ void register_all() {
       ->Iterations(3)
       ->UseRealTime()
       ->Unit(benchmark::kMillisecond);
+  benchmark::RegisterBenchmark("mesh_move/triangles:5120", BM_MeshMove, 4)->Unit(benchmark::kMicrosecond);
   for (int n : {100000, 1000000})
     benchmark::RegisterBenchmark(("mesh_build/triangles:" + std::to_string(n)).c_str(), BM_MeshBuild, n)
         ->Iterations(1)

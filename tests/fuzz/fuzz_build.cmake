@@ -11,6 +11,7 @@ endif()
 
 find_package(glm REQUIRED)
 find_package(nlohmann_json 3.10 REQUIRED)
+include(cmake/openvdb.cmake)  # voxvis::grid's closed-mesh interiors.
 # The importer's target links assimp, a shared library from Debian: it is not
 # instrumented, so libFuzzer sees the coverage of voxvis's conversion only,
 # and a crash inside assimp still stops the target with its stack.

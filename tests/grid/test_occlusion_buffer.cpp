@@ -65,6 +65,53 @@ TEST(OcclusionBuffer, BoxPeekingOutByAFractionOfAPixelIsNotHidden) {
   EXPECT_FALSE(ob.hides_world(Vec3(-1, -peek, -21), Vec3(1, 1, -20)));
 }
 
+TEST(OcclusionBuffer, TrianglesHideWhatLiesBehindThem) {
+  // A square wall x, y in [-2, 2] at z = -10 as two triangles sharing a
+  // diagonal. Pixels straddling the diagonal belong wholly to neither (the
+  // inner-coverage rule), so what lies behind the diagonal's pixels is not
+  // hidden by the wall alone: a box behind one triangle's half is.
+  OcclusionBuffer ob = begin(look_down_z(90.0), 100);
+  const Vec3 a(-2, -2, -10), b(2, -2, -10), c(2, 2, -10), d(-2, 2, -10);
+  ASSERT_TRUE(ob.render_triangle(a, b, c));
+  ASSERT_TRUE(ob.render_triangle(a, c, d));
+  // Behind the lower-right half (below the diagonal y = x), at depth 20.
+  EXPECT_TRUE(ob.hides_world(Vec3(1.0, -3.0, -21), Vec3(3.0, -1.0, -20)));
+  EXPECT_TRUE(ob.hides_world(Vec3(-3.0, 1.0, -21), Vec3(-1.0, 3.0, -20)));
+  // In front of the wall, or reaching it: not hidden.
+  EXPECT_FALSE(ob.hides_world(Vec3(0.5, -1.0, -9.5), Vec3(1.0, -0.5, -9.0)));
+  EXPECT_FALSE(ob.hides_world(Vec3(1.0, -1.5, -20), Vec3(1.5, -1.0, -10.0)));
+  // Beside it, or peeking out by a pixel: not hidden.
+  EXPECT_FALSE(ob.hides_world(Vec3(5, -1, -21), Vec3(6, 1, -20)));
+  const double peek = (0.2 + 0.5 * 0.02) * 20.0;
+  EXPECT_FALSE(ob.hides_world(Vec3(1.0, -3.0, -21), Vec3(peek, -1.0, -20)));
+  // Drawn as one quad, the two close the seam: behind the diagonal too.
+  OcclusionBuffer quad = begin(look_down_z(90.0), 100);
+  const Vec3 corners[4] = {b, c, d, a};  // Triangles (b, c, a) and (c, d, a).
+  bool raised = false;
+  ASSERT_TRUE(quad.render_quad(corners, 0.0, &raised));
+  EXPECT_TRUE(raised);
+  EXPECT_TRUE(quad.hides_world(Vec3(-1.0, -1.0, -21), Vec3(1.0, 1.0, -20)));
+  EXPECT_FALSE(ob.hides_world(Vec3(-1.0, -1.0, -21), Vec3(1.0, 1.0, -20)));
+  // A quad whose image is not convex is refused (drawn as triangles).
+  const Vec3 dart[4] = {Vec3(-2, -2, -10), Vec3(0, -1, -10), Vec3(2, -2, -10), Vec3(0, 2, -10)};
+  EXPECT_FALSE(quad.render_quad(dart, 0.0, &raised));
+  // Seen edge-on (the eye in its plane), a triangle writes nothing.
+  OcclusionBuffer edge = begin(look_down_z(90.0), 100);
+  EXPECT_FALSE(edge.render_triangle(Vec3(0, -2, -5), Vec3(0, 2, -5), Vec3(0, 0, -20)));
+  EXPECT_FALSE(edge.hides_world(Vec3(-0.1, -0.1, -30), Vec3(0.1, 0.1, -29)));
+}
+
+TEST(OcclusionBuffer, TrianglesCrossingTheNearPlaneOccludeWithTheirFarPart) {
+  // A triangle from behind the eye to far ahead, under a camera with near
+  // 1: it occludes what lies behind its part beyond the near plane, and its
+  // bounds are never nearer than that plane.
+  OcclusionBuffer ob = begin(look_down_z(90.0, 1.0, 1.0), 64);
+  ASSERT_TRUE(ob.render_triangle(Vec3(-50, -50, 5), Vec3(50, -50, 5), Vec3(0, 50, -40)));
+  for (int j = 0; j < ob.height(); ++j)
+    for (int i = 0; i < ob.width(); ++i) EXPECT_GE(ob.pixel(i, j), 1.0f);
+  EXPECT_TRUE(ob.hides_world(Vec3(-0.2, -0.2, -30), Vec3(0.2, 0.2, -29)));
+}
+
 TEST(OcclusionBuffer, FineTestHidesALongBoxUnderAFloorSeenAtASlant) {
   // Looking down at a slant over a floor slab (top at y = -1): a long box
   // under it spans depths 5 to 30. At its least depth (its near corner) it
@@ -181,6 +228,21 @@ TEST(OcclusionBuffer, EyeInsideAnOccludersBoxWritesNothing) {
 /// `tiny_near`, a near plane far below the scene's scale): every ray through
 /// every written pixel meets the occluder beyond near no deeper than the
 /// pixel's bound. Returns the number of rays checked.
+/// Where the ray eye + t d meets triangle (a, b, c) (Moller-Trumbore in
+/// double, no tolerance): the buffer's corner rays lie well inside what it
+/// writes, so a rounding here cannot decide a test.
+bool ray_triangle(const Vec3& eye, const Vec3& d, const Vec3& a, const Vec3& b, const Vec3& c, double* t) {
+  const Vec3 e1 = b - a, e2 = c - a, p = glm::cross(d, e2);
+  const double det = glm::dot(e1, p);
+  if (det == 0.0) return false;
+  const Vec3 s = eye - a;
+  const double u = glm::dot(s, p) / det;
+  const Vec3 q = glm::cross(s, e1);
+  const double v = glm::dot(d, q) / det;
+  *t = glm::dot(e2, q) / det;
+  return u >= 0.0 && v >= 0.0 && u + v <= 1.0 && *t > 0.0;
+}
+
 int check_written_bounds(double scale, bool tiny_near, std::uint64_t seed) {
   Rng rng(seed);
   int checked = 0;
@@ -207,12 +269,34 @@ int check_written_bounds(double scale, bool tiny_near, std::uint64_t seed) {
                                            rng.in_box(Vec3(-0.5), Vec3(0.5)) * scale
                                      : cam.eye + glm::normalize(cam.dir) * rng.uniform(1.0, 20.0) * scale +
                                            rng.in_box(Vec3(-3), Vec3(3)) * scale;
-    if (rng.chance(0.5)) {
+    const int kind = rng.uniform_int(0, 3);
+    Vec3 tri[4];
+    if (kind == 0) {
       o = sphere(1, at, rng.log_uniform(0.05, 5.0) * scale);
       ob.render_sphere(o.center, o.radius);
-    } else {
+    } else if (kind == 1) {
       o = box_around(1, at, rng.in_box(Vec3(0.05), Vec3(4.0)) * scale);
       ob.render_box(o.center - o.half_extent, o.center + o.half_extent);
+    } else {
+      // A triangle, now and then a sliver or one seen almost edge-on.
+      const double size = rng.log_uniform(0.05, 5.0) * scale;
+      for (Vec3& v : tri) v = at + rng.in_box(Vec3(-1.0), Vec3(1.0)) * size;
+      if (rng.chance(0.2)) tri[2] = tri[0] + (tri[1] - tri[0]) * rng.uniform() + rng.in_box(Vec3(-1e-6), Vec3(1e-6)) * size;
+      if (rng.chance(0.1)) tri[2] = cam.eye + (tri[1] - cam.eye) * rng.uniform(0.5, 2.0) + rng.in_box(Vec3(-1e-3), Vec3(1e-3)) * size;
+      o = box_around(1, at, Vec3(size));
+      if (kind == 2) {
+        ob.render_triangle(tri[0], tri[1], tri[2]);
+      } else {
+        // A quad: a parallelogram's corners, the fourth bent off its plane
+        // now and then (the two triangles (0, 1, 3) and (1, 2, 3)).
+        tri[3] = tri[0] + tri[2] - tri[1];
+        if (rng.chance(0.5)) tri[3] += rng.in_box(Vec3(-0.05), Vec3(0.05)) * size;
+        bool raised = false;
+        if (!ob.render_quad(tri, 0.0, &raised)) {
+          ob.render_triangle(tri[0], tri[1], tri[3]);
+          ob.render_triangle(tri[1], tri[2], tri[3]);
+        }
+      }
     }
     for (int j = 0; j < ob.height(); ++j) {
       for (int i = 0; i < ob.width(); ++i) {
@@ -224,14 +308,25 @@ int check_written_bounds(double scale, bool tiny_near, std::uint64_t seed) {
           const double fy = s < 4 ? (s >> 1) : s < 8 ? ((s >> 1) & 1) : rng.uniform();
           const double x = 2.0 * (i + fx) / ob.width() - 1.0, y = 2.0 * (j + fy) / ob.height() - 1.0;
           double t0 = 0.0, t1 = 0.0;
-          const bool hit = intersect(o, vb.eye, vb.ray_dir(x, y), &t0, &t1);
+          const Vec3 dir = vb.ray_dir(x, y);
+          bool hit = false;
+          if (kind < 2) {
+            hit = intersect(o, vb.eye, dir, &t0, &t1);
+          } else if (kind == 2) {
+            hit = ray_triangle(vb.eye, dir, tri[0], tri[1], tri[2], &t0);
+          } else {
+            hit = ray_triangle(vb.eye, dir, tri[0], tri[1], tri[3], &t0) ||
+                  ray_triangle(vb.eye, dir, tri[1], tri[2], tri[3], &t0);
+          }
+          if (kind >= 2) t1 = t0;
           EXPECT_TRUE(hit) << "pixel " << i << "," << j << " written but a ray misses: " << describe(cam) << " "
-                           << describe(o);
+                           << (kind < 2 ? describe(o) : "a triangle");
           // The first hit beyond the near plane (objects are clipped there).
           EXPECT_GE(t1, cam.near) << "pixel " << i << "," << j << " written but a ray leaves before near: "
-                                  << describe(cam) << " " << describe(o);
+                                  << describe(cam) << " " << (kind < 2 ? describe(o) : "a triangle");
           EXPECT_LE(std::max(t0, cam.near), static_cast<double>(bound))
-              << "pixel " << i << "," << j << " bound too near: " << describe(cam) << " " << describe(o);
+              << "pixel " << i << "," << j << " bound too near: " << describe(cam) << " "
+              << (kind < 2 ? describe(o) : "a triangle");
           if (!hit || t1 < cam.near || std::max(t0, cam.near) > static_cast<double>(bound)) return checked;
           ++checked;
         }
@@ -294,6 +389,48 @@ TEST(OcclusionBuffer, WrittenBoundsHoldAtEveryScale) {
       EXPECT_GT(check_written_bounds(scale, tiny_near, 43), 500);
       if (HasFailure()) return;
     }
+}
+
+TEST(OcclusionBuffer, BentQuadsWriteBoundsEveryRayOfThePixelKeeps) {
+  // Quads of two triangles (0, 1, 3) and (1, 2, 3), their fourth corner bent
+  // off the plane of the other three, towards the eye or away, large in the
+  // image: every written pixel's rays meet one of the triangles no deeper
+  // than its bound (the farther of the two planes is the one written).
+  Rng rng(44);
+  int checked = 0, drawn = 0;
+  for (int trial = 0; trial < scaled(200); ++trial) {
+    const Camera cam = camera_along(rng.in_box(Vec3(-5), Vec3(5)), rng.unit_vector(), rng.uniform(30.0, 120.0),
+                                    rng.uniform(0.5, 2.0), rng.log_uniform(1e-3, 1.0));
+    ViewBasis vb;
+    if (!validate_camera(cam).ok || !make_basis(cam, &vb)) continue;
+    OcclusionBuffer ob = begin(cam, 32);
+    const double dist = rng.uniform(2.0, 20.0);
+    const Vec3 centre = cam.eye + glm::normalize(cam.dir) * dist;
+    const Vec3 n = rng.unit_vector();
+    const Vec3 e1 = glm::normalize(glm::cross(n, rng.unit_vector())), e2 = glm::cross(n, e1);
+    const double a = dist * rng.uniform(0.2, 1.0), b = dist * rng.uniform(0.2, 1.0);
+    Vec3 q[4] = {centre - a * e1 - b * e2, centre + a * e1 - b * e2, centre + a * e1 + b * e2, centre - a * e1 + b * e2};
+    q[3] += n * (rng.uniform(-0.3, 0.3) * std::min(a, b));
+    bool raised = false;
+    if (!ob.render_quad(q, 0.0, &raised)) continue;
+    drawn += raised ? 1 : 0;
+    for (int j = 0; j < ob.height(); ++j)
+      for (int i = 0; i < ob.width(); ++i) {
+        const float bound = ob.pixel(i, j);
+        if (std::isinf(bound)) continue;
+        for (int c = 0; c < 5; ++c) {
+          const double fx = c < 4 ? (c & 1) : rng.uniform(), fy = c < 4 ? (c >> 1) : rng.uniform();
+          const Vec3 dir = vb.ray_dir(2.0 * (i + fx) / ob.width() - 1.0, 2.0 * (j + fy) / ob.height() - 1.0);
+          double t = 0.0;
+          const bool hit = ray_triangle(vb.eye, dir, q[0], q[1], q[3], &t) || ray_triangle(vb.eye, dir, q[1], q[2], q[3], &t);
+          ASSERT_TRUE(hit) << "pixel " << i << "," << j << " " << describe(cam);
+          ASSERT_LE(std::max(t, cam.near), static_cast<double>(bound)) << "pixel " << i << "," << j << " " << describe(cam);
+          ++checked;
+        }
+      }
+  }
+  EXPECT_GT(drawn, scaled(200) / 4);
+  EXPECT_GT(checked, 1000);
 }
 
 TEST(OcclusionBuffer, SphereTestIsTighterThanItsBox) {

@@ -77,10 +77,13 @@ struct FrameTrace {
 /// The spans hold Scene::grid().res.x entries and live during the call only.
 struct GridRow {
   int y = 0, z = 0;
-  /// Per voxel x: 1 when static objects cover it (static opacity,
-  /// docs/design.md "Opacity"), else 0. Dynamic objects' opacity is not
-  /// included.
+  /// Per voxel x, bits: kCovered when static objects cover it (static
+  /// opacity, docs/design.md "Opacity"), kInsideMesh when it lies wholly
+  /// inside a closed static mesh (built with the occlusion buffer on:
+  /// docs/design.md "Meshes"); 0 when neither. Dynamic objects' opacity is
+  /// not included.
   std::span<const std::uint8_t> opaque;
+  static constexpr std::uint8_t kCovered = 1, kInsideMesh = 2;
   /// Per voxel x: the objects the grid holds for the voxel, the ones that
   /// touch its closed cube (with the engine's rounding allowance, which only
   /// adds a voxel an object touches within a few ulps): static objects as
