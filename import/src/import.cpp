@@ -345,8 +345,9 @@ Status convert(const aiScene* scene, const std::string& source, const ImportOpti
   };
   if (options.split == Split::Whole) {
     ImportedObject o = proto(std::filesystem::path(source).filename().string(), nullptr);
-    const bool dyn = dynamic_of(o, "");
-    (void)dyn;  // A whole file is placed as it lies: centre 0, node transforms baked.
+    // A whole file, dynamic or not, is placed as it lies: centre 0, the
+    // node transforms baked.
+    dynamic_of(o, "");
     Builder b;
     for (const Instance& inst : nodes)
       for (unsigned i = 0; i < inst.node->mNumMeshes; ++i)
