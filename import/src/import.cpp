@@ -32,6 +32,7 @@
 #include <vector>
 
 #include <assimp/Importer.hpp>
+#include <assimp/ProgressHandler.hpp>
 #include <assimp/config.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
@@ -401,6 +402,43 @@ std::string size_text(std::uintmax_t bytes) {
   return buf;
 }
 
+/// assimp's progress of reading one file, passed on as "<path>: N% through
+/// assimp's reading and post-processing" at most every 2 seconds (nothing
+/// for a file read faster).
+class ReadProgress : public Assimp::ProgressHandler {
+ public:
+  ReadProgress(const ImportOptions& options, std::string path) : options_(options), path_(std::move(path)) {}
+  bool Update(float fraction) override {
+    const auto now = std::chrono::steady_clock::now();
+    if (options_.progress && fraction >= 0.0f && now - last_ >= std::chrono::seconds(2)) {
+      last_ = now;
+      options_.progress(path_ + ": " + std::to_string(static_cast<int>(std::min(fraction, 1.0f) * 100.0f)) +
+                        "% through assimp's reading and post-processing");
+    }
+    return true;  // Never cancels.
+  }
+
+ private:
+  const ImportOptions& options_;
+  std::string path_;
+  std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
+};
+
+/// Installs a progress handler for one read; the importer gives it back
+/// (without deleting it: it is the caller's) when the guard goes.
+class ProgressGuard {
+ public:
+  ProgressGuard(Assimp::Importer& importer, Assimp::ProgressHandler* handler) : importer_(importer) {
+    importer_.SetProgressHandler(handler);
+  }
+  ~ProgressGuard() { importer_.SetProgressHandler(nullptr); }
+  ProgressGuard(const ProgressGuard&) = delete;
+  ProgressGuard& operator=(const ProgressGuard&) = delete;
+
+ private:
+  Assimp::Importer& importer_;
+};
+
 Status import_one(Assimp::Importer& importer, const std::string& path, const ImportOptions& options,
                   std::vector<bool>* used, ImportResult* out) {
   std::error_code ec;
@@ -410,7 +448,12 @@ Status import_one(Assimp::Importer& importer, const std::string& path, const Imp
   if (std::filesystem::is_directory(status)) return fail(path, "cannot open: is a directory");
   const auto start = std::chrono::steady_clock::now();
   if (options.progress) options.progress("reading " + path + " (" + size_text(std::filesystem::file_size(path, ec)) + ")");
-  const aiScene* scene = importer.ReadFile(path, post_processing());
+  ReadProgress read_progress(options, path);
+  const aiScene* scene = nullptr;
+  {
+    const ProgressGuard guard(importer, &read_progress);
+    scene = importer.ReadFile(path, post_processing());
+  }
   if (scene == nullptr) return fail(path, std::string("cannot import: ") + importer.GetErrorString());
   const std::size_t before = out->objects.size();
   const ImportStats stats_before = out->stats;
