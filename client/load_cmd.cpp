@@ -7,6 +7,7 @@
 
 #include "cli.h"
 #include "common.h"
+#include "model_loader.h"
 #include "voxvis/client.h"
 #include "voxvis/format.h"
 
@@ -55,7 +56,11 @@ int run_load(const LoadArgs& args) {
   FormatError error;
   if (!read_file(args.scene, &text, &error)) return report(error);
   SceneDesc desc;
-  if (!parse_scene(text, args.scene, &desc, &error)) return report(error);
+  int models = 0;
+  if (!parse_scene(text, args.scene, &desc, &error, scene_read_options(args.scene, &models))) return report(error);
+  // The server reads no model file: a scene that refers to models goes with
+  // their triangles inline (its lines then no longer match the file's).
+  if (models > 0) text = scene_to_json(desc);
 
   int code = kExitOk;
   const std::unique_ptr<client::Client> client = open_client(args.net, &code);

@@ -16,6 +16,7 @@
 
 #include "cli.h"
 #include "common.h"
+#include "model_loader.h"
 #include "output_file.h"
 #include "voxvis/format.h"
 #include "voxvis/scene.h"
@@ -65,7 +66,8 @@ bool parse_grid_arg(const std::string& text, int max_per_axis, int out[3], std::
 bool load_scene(const EngineArgs& args, std::string* text, SceneDesc* desc, SceneOptions* options,
                 int* exit_code) {
   FormatError error;
-  if (!read_file(args.scene, text, &error) || !parse_scene(*text, args.scene, desc, &error)) {
+  if (!read_file(args.scene, text, &error) ||
+      !parse_scene(*text, args.scene, desc, &error, scene_read_options(args.scene))) {
     *exit_code = report(error);
     return false;
   }

@@ -14,12 +14,25 @@ VOXVIS_PACKAGES=(
   gnuplot-nox
   python3-grpcio python3-protobuf
   libopenvdb-dev libboost-iostreams-dev
+  libassimp-dev
 )
 
+# Only the test suite uses these (tests/run.sh installs them; the tests that
+# need one skip with a message when it is missing): real model files for the
+# importer's tests (glTF 2.0 samples, OBJ, the FZK house as IFC) in
+# /usr/share/assimp/models.
+VOXVIS_TEST_PACKAGES=(
+  assimp-testmodels
+)
+
+# voxvis_ensure_deps [tests]: the build's packages, and with `tests` the test
+# suite's as well.
 voxvis_ensure_deps() {
   local missing=()
   local p
-  for p in "${VOXVIS_PACKAGES[@]}"; do
+  local wanted=("${VOXVIS_PACKAGES[@]}")
+  if [ "${1:-}" = tests ]; then wanted+=("${VOXVIS_TEST_PACKAGES[@]}"); fi
+  for p in "${wanted[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
   done
   if [ ${#missing[@]} -eq 0 ]; then

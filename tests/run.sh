@@ -7,7 +7,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source deploy/deps.sh
-voxvis_ensure_deps
+voxvis_ensure_deps tests
 
 jobs=$(nproc 2>/dev/null || echo 2)
 

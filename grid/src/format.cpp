@@ -27,7 +27,9 @@
 #include <cmath>
 #include <cstddef>
 #include <cstring>
+#include <filesystem>
 #include <istream>
+#include <map>
 #include <limits>
 #include <string>
 #include <string_view>
@@ -228,17 +230,100 @@ class Checker {
 
 const char* axis_name(int axis) { return axis == 0 ? "x" : (axis == 1 ? "y" : "z"); }
 
+/// The model references of one document: the loader, and the meshes loaded
+/// so far by (resolved path, name), shared by the objects that name them.
+struct ModelRefs {
+  const SceneReadOptions* options = nullptr;
+  std::map<std::pair<std::string, std::string>, std::shared_ptr<const Mesh>> loaded;
+};
+
+/// A mesh object's "model" (and "model_name"): the mesh the loader gives.
+bool load_model_ref(Checker& ck, const json& v, const std::string& path, ModelRefs* refs,
+                    std::shared_ptr<const Mesh>* out) {
+  const std::string mp = join_key(path, "model");
+  for (const char* k : {"vertices", "triangles"}) {
+    if (v.contains(k)) {
+      const std::string kp = join_key(path, k);
+      return ck.fail(path, "key " + quote_text(k) + " is not allowed with \"model\" (give the triangles inline or "
+                                                   "by reference, not both)",
+                     &kp);
+    }
+  }
+  const json& model = v["model"];
+  if (!model.is_string() || model.get_ref<const std::string&>().empty())
+    return ck.fail(mp, "must be the path of a model file (a non-empty string), got " + describe(model));
+  std::string name;
+  if (const auto n = v.find("model_name"); n != v.end()) {
+    const std::string np = join_key(path, "model_name");
+    if (!n->is_string() || n->get_ref<const std::string&>().empty())
+      return ck.fail(np, "must be the name of a node or mesh of the model (a non-empty string), got " + describe(*n));
+    name = n->get_ref<const std::string&>();
+  }
+  const std::string& file = model.get_ref<const std::string&>();
+  if (refs == nullptr || refs->options == nullptr || !refs->options->load_model)
+    return ck.fail(mp, "cannot load the model file " + quote_text(file) +
+                           ": this program reads scene files without a model importer (the voxvis commands replay, "
+                           "verify, report, export and load have one); give the triangles inline (voxvis import "
+                           "writes them)");
+  std::filesystem::path resolved(file);
+  if (resolved.is_relative() && !refs->options->base_dir.empty())
+    resolved = std::filesystem::path(refs->options->base_dir) / resolved;
+  const auto key = std::make_pair(resolved.string(), name);
+  if (const auto it = refs->loaded.find(key); it != refs->loaded.end()) {
+    *out = it->second;
+    return true;
+  }
+  std::shared_ptr<const Mesh> mesh;
+  const Status st = refs->options->load_model(key.first, name, &mesh);
+  if (!st.ok || mesh == nullptr) {
+    std::string what = "cannot load " + quote_text(key.first) + (name.empty() ? "" : " (" + quote_text(name) + ")");
+    // The loader's errors name the file in their field: said once.
+    const std::string why = st.ok ? std::string("the loader gave no mesh") : st.field == key.first ? st.message : st.str();
+    return ck.fail(mp, what + ": " + why);
+  }
+  if (const Status vs = validate_mesh(*mesh, mp); !vs) return ck.fail(vs.field, vs.message);
+  refs->loaded.emplace(key, mesh);
+  *out = std::move(mesh);
+  return true;
+}
+
+/// A mesh object's placement: "center", "rotation", "scale", then
+/// validate_mesh_object's rules.
+bool parse_placement(Checker& ck, const json& v, const std::string& path, ObjectDesc* obj) {
+  const auto center = v.find("center");
+  if (center != v.end() && !ck.vec3(*center, join_key(path, "center"), &obj->center)) return false;
+  const auto rotation = v.find("rotation");
+  if (rotation != v.end() && !ck.quat(*rotation, join_key(path, "rotation"), &obj->rotation)) return false;
+  const auto scale = v.find("scale");
+  if (scale != v.end() && !ck.number(*scale, join_key(path, "scale"), &obj->scale)) return false;
+  if (const Status st = validate_mesh_object(*obj, path); !st) return ck.fail(st.field, st.message);
+  return true;
+}
+
 /// A mesh object's own keys: "vertices" [[x, y, z], ...] and "triangles"
 /// [[i, j, k], ...] (model space), "center" (where the model origin goes,
 /// default [0, 0, 0]), "rotation" [w, x, y, z] (default [1, 0, 0, 0]) and
-/// "scale" (default 1); then validate_mesh_object's rules.
-bool parse_mesh(Checker& ck, const json& v, const std::string& path, ObjectDesc* obj) {
+/// "scale" (default 1); then validate_mesh_object's rules. Or, instead of
+/// "vertices" and "triangles", "model" (a model file's path) and optionally
+/// "model_name", loaded through the reader options' loader.
+bool parse_mesh(Checker& ck, const json& v, const std::string& path, ModelRefs* refs, ObjectDesc* obj) {
   for (const char* k : {"radius", "min", "max"}) {
     if (v.contains(k)) {
       const std::string kp = join_key(path, k);
       return ck.fail(path, "key " + quote_text(k) + " is not allowed for a mesh (give \"vertices\" and \"triangles\")",
                      &kp);
     }
+  }
+  if (v.contains("model")) {
+    std::shared_ptr<const Mesh> loaded;
+    if (!load_model_ref(ck, v, path, refs, &loaded)) return false;
+    obj->shape = Shape::Mesh;
+    obj->mesh = std::move(loaded);
+    return parse_placement(ck, v, path, obj);
+  }
+  if (v.contains("model_name")) {
+    const std::string kp = join_key(path, "model_name");
+    return ck.fail(path, "key \"model_name\" is only allowed with \"model\"", &kp);
   }
   auto mesh = std::make_shared<Mesh>();
   const json* verts = ck.require(v, path, "vertices", "[[x, y, z], ...]");
@@ -268,23 +353,16 @@ bool parse_mesh(Checker& ck, const json& v, const std::string& path, ObjectDesc*
     }
   }
   obj->shape = Shape::Mesh;
-  const auto center = v.find("center");
-  if (center != v.end() && !ck.vec3(*center, join_key(path, "center"), &obj->center)) return false;
-  const auto rotation = v.find("rotation");
-  if (rotation != v.end() && !ck.quat(*rotation, join_key(path, "rotation"), &obj->rotation)) return false;
-  const auto scale = v.find("scale");
-  if (scale != v.end() && !ck.number(*scale, join_key(path, "scale"), &obj->scale)) return false;
   // The file names the mesh's keys on the object itself (no "mesh" key).
   if (const Status st = validate_mesh(*mesh, path); !st) return ck.fail(st.field, st.message);
   obj->mesh = std::move(mesh);
-  if (const Status st = validate_mesh_object(*obj, path); !st) return ck.fail(st.field, st.message);
-  return true;
+  return parse_placement(ck, v, path, obj);
 }
 
-bool parse_object(Checker& ck, const json& v, const std::string& path, ObjectDesc* out) {
+bool parse_object(Checker& ck, const json& v, const std::string& path, ModelRefs* refs, ObjectDesc* out) {
   if (!ck.object(v, path)) return false;
   if (!ck.known_keys(v, path, {"id", "shape", "center", "radius", "min", "max", "dynamic", "max_speed",
-                               "vertices", "triangles", "rotation", "scale"})) {
+                               "vertices", "triangles", "rotation", "scale", "model", "model_name"})) {
     return false;
   }
   ObjectDesc obj;
@@ -299,7 +377,7 @@ bool parse_object(Checker& ck, const json& v, const std::string& path, ObjectDes
   }
   const std::string& shape_name = shape->get_ref<const std::string&>();
   if (shape_name != "mesh") {
-    for (const char* k : {"vertices", "triangles", "rotation", "scale"}) {
+    for (const char* k : {"vertices", "triangles", "rotation", "scale", "model", "model_name"}) {
       if (v.contains(k)) {
         const std::string kp = join_key(path, k);
         return ck.fail(path, "key " + quote_text(k) + " is only allowed for a mesh", &kp);
@@ -307,7 +385,7 @@ bool parse_object(Checker& ck, const json& v, const std::string& path, ObjectDes
     }
   }
   if (shape_name == "mesh") {
-    if (!parse_mesh(ck, v, path, &obj)) return false;
+    if (!parse_mesh(ck, v, path, refs, &obj)) return false;
   } else if (shape_name == "sphere") {
     obj.shape = Shape::Sphere;
     for (const char* k : {"min", "max"}) {
@@ -377,7 +455,7 @@ bool parse_object(Checker& ck, const json& v, const std::string& path, ObjectDes
   return true;
 }
 
-bool parse_scene_dom(Checker& ck, const json& root, SceneDesc* out) {
+bool parse_scene_dom(Checker& ck, const json& root, ModelRefs* refs, SceneDesc* out) {
   const std::string top;
   if (!root.is_object()) {
     return ck.fail(top, "a scene must be a JSON object {\"format\": \"voxvis-scene/1\", ...}, got " +
@@ -441,7 +519,7 @@ bool parse_scene_dom(Checker& ck, const json& root, SceneDesc* out) {
   for (std::size_t i = 0; i < objects->size(); ++i) {
     const std::string path = join_index("objects", i);
     ObjectDesc obj;
-    if (!parse_object(ck, (*objects)[i], path, &obj)) return false;
+    if (!parse_object(ck, (*objects)[i], path, refs, &obj)) return false;
     const auto [it, inserted] = seen.emplace(obj.id, i);
     if (!inserted) {
       return ck.fail(join_key(path, "id"),
@@ -533,6 +611,11 @@ bool parse_frame_dom(Checker& ck, const json& root, FrameInput* out) {
 
 bool parse_scene(std::string_view text, std::string_view source, SceneDesc* out,
                  FormatError* error) {
+  return parse_scene(text, source, out, error, SceneReadOptions{});
+}
+
+bool parse_scene(std::string_view text, std::string_view source, SceneDesc* out,
+                 FormatError* error, const SceneReadOptions& options) {
   try {
     json root;
     int line = 0;
@@ -543,7 +626,9 @@ bool parse_scene(std::string_view text, std::string_view source, SceneDesc* out,
     }
     Checker ck(source, text, 0, error);
     SceneDesc desc;
-    if (!parse_scene_dom(ck, root, &desc)) return false;
+    ModelRefs refs;
+    refs.options = &options;
+    if (!parse_scene_dom(ck, root, &refs, &desc)) return false;
     if (out != nullptr) *out = std::move(desc);
     return true;
   } catch (const std::exception& e) {

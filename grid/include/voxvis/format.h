@@ -8,7 +8,9 @@
 // be > 0, got -1").
 #pragma once
 
+#include <functional>
 #include <iosfwd>
+#include <memory>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -34,9 +36,34 @@ struct FrameInput {
   int line = 0;  ///< 1-based line in the frames file.
 };
 
+/// Loads the triangles of a model file that a scene's mesh object names
+/// ("model", docs/formats.md): `path` resolved against
+/// SceneReadOptions::base_dir, `name` the object's "model_name" (empty: the
+/// whole model). On success `*out` is a mesh validate_mesh accepts; on
+/// failure the Status says why (the parser puts it on the object's line).
+using ModelLoader =
+    std::function<Status(const std::string& path, const std::string& name, std::shared_ptr<const Mesh>* out)>;
+
+/// How parse_scene reads what lies outside the document.
+struct SceneReadOptions {
+  /// Loads referenced models; empty: a reference is refused with an error
+  /// saying that this program cannot load model files. The engine library
+  /// reads no model format itself: the `voxvis` commands install the
+  /// importer's (voxvis/import.h).
+  ModelLoader load_model;
+  /// The directory relative model paths are resolved against (the scene
+  /// file's); empty: the current directory.
+  std::string base_dir;
+};
+
 /// Parses a voxvis-scene/1 document. Checks everything Scene::create checks
 /// that can be told from the file alone (shapes, finiteness, ranges, unique
-/// ids), so that errors carry lines.
+/// ids), so that errors carry lines. Model references are loaded through
+/// `options.load_model`, each distinct (path, name) once, its mesh shared by
+/// the objects naming it.
+bool parse_scene(std::string_view text, std::string_view source, SceneDesc* out,
+                 FormatError* error, const SceneReadOptions& options);
+/// The same without a model loader: references are refused.
 bool parse_scene(std::string_view text, std::string_view source, SceneDesc* out,
                  FormatError* error);
 
