@@ -26,6 +26,7 @@
 #include "server_process.h"
 #include "voxvis/client.h"
 #include "voxvis/format.h"
+#include "voxvis/generate.h"
 #include "voxvis/scene.h"
 
 namespace voxvis::servertest {
@@ -227,6 +228,44 @@ TEST(ServerMeshes, ViewAndTickAnswerAsReplayWithRotatingMoves) {
   r = run_program({VOXVIS_CLI, "scenes", "--server", server.address()}, server.dir());
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_THAT(r.out, HasSubstr("view: grid 20x20x20, 7 objects (3 dynamic), 5 meshes of 382 triangles, "));
+  EXPECT_EQ(server.terminate(), 0);
+}
+
+TEST(ServerMeshes, AnImportedModelIsServedAsReplayAnswersIt) {
+  // The path end to end: a glTF model from Debian's
+  // assimp-testmodels through `voxvis import` (one part dynamic), loaded
+  // into the server with `voxvis load`, walked through with moves by
+  // `voxvis view` and `voxvis tick`: the answers are replay's.
+  const std::string model = "/usr/share/assimp/models/glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb";
+  if (!std::filesystem::exists(model)) GTEST_SKIP() << "assimp-testmodels is not installed (" << model << ")";
+  ServerProcess server;
+  ASSERT_TRUE(server.start());
+  const std::string scene = server.path("engine.json"), frames = server.path("engine.jsonl");
+  ProcessResult r = run_program({VOXVIS_CLI, "import", model, "--scene-out", scene, "--dynamic", "nodes[80]",
+                                 "--max-speed", "40", "--grid", "48,32,64", "-q"},
+                                server.dir());
+  ASSERT_EQ(r.status, 0) << r.err;
+  SceneDesc desc;
+  FormatError error;
+  ASSERT_TRUE(parse_scene(slurp(scene), scene, &desc, &error)) << error.str();
+  ASSERT_GT(desc.objects.size(), 50u);
+  WalkthroughParams walk;
+  walk.frames = 30;
+  spit(frames, frames_text(make_walkthrough(desc, walk)));
+  const std::string replay_out = server.path("replay.jsonl");
+  r = run_program({VOXVIS_CLI, "replay", "--scene", scene, "--frames", frames, "--out", replay_out, "-q"}, server.dir());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string expected = slurp(replay_out);
+  ASSERT_EQ(lines_of(expected).size(), 30u);
+  for (const char* id : {"view", "tick"}) {
+    r = run_program({VOXVIS_CLI, "load", "--server", server.address(), "--scene", scene, "--id", id}, server.dir());
+    ASSERT_EQ(r.status, 0) << r.err;
+    const std::string out = server.path(std::string(id) + ".jsonl");
+    r = run_program({VOXVIS_CLI, id, "--server", server.address(), "--scene", id, "--frames", frames, "--out", out, "-q"},
+                    server.dir());
+    ASSERT_EQ(r.status, 0) << r.err;
+    expect_same_output(expected, slurp(out), std::string("voxvis ") + id);
+  }
   EXPECT_EQ(server.terminate(), 0);
 }
 
