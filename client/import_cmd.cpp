@@ -3,10 +3,6 @@
 // (docs/importing.md; docs/formats.md, "Names table").
 #include "import_cmd.h"
 
-#include <poll.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <cerrno>
 #include <chrono>
@@ -20,6 +16,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "child_process.h"
 #include "cli.h"
 #include "common.h"
 #include "output_file.h"
@@ -215,72 +212,37 @@ int import_and_write(const ImportArgs& args, import::ImportOptions options, cons
   return kExitOk;
 }
 
-std::string signal_text(int sig) {
-  const char* name = sig == SIGSEGV ? "SIGSEGV" : sig == SIGABRT ? "SIGABRT" : sig == SIGBUS ? "SIGBUS"
-                     : sig == SIGFPE ? "SIGFPE" : sig == SIGILL ? "SIGILL" : sig == SIGKILL ? "SIGKILL" : nullptr;
-  return "signal " + std::to_string(sig) + (name != nullptr ? std::string(" (") + name + ")" : std::string());
-}
-
 int supervise(const ImportArgs& args, const import::ImportOptions& options, const int grid[3],
               const std::string& names_out) {
-  int fds[2];
-  if (::pipe(fds) != 0) return report_message(std::string("cannot create a pipe: ") + std::strerror(errno));
-  std::fflush(nullptr);
-  const pid_t pid = ::fork();
-  if (pid < 0) return report_message(std::string("cannot start the import: ") + std::strerror(errno));
-  if (pid == 0) {
-    ::close(fds[0]);
-    int code = kExitInternal;
-    try {
-      code = import_and_write(args, options, grid, names_out, fds[1]);
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "voxvis: internal error: %s\n", e.what());
-    }
-    std::fflush(nullptr);
-    ::_exit(code);
-  }
-  ::close(fds[1]);
   // The file being read: the last line the child announced.
   std::string announced, current = args.models.empty() ? std::string() : args.models.front();
-  const auto start = std::chrono::steady_clock::now();
-  bool timed_out = false;
-  for (;;) {
-    int wait_ms = -1;
-    if (args.timeout > 0.0) {
-      const double left = args.timeout - std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      if (left <= 0.0) {
-        timed_out = true;
-        break;
-      }
-      wait_ms = static_cast<int>(std::min(left * 1000.0 + 1.0, 60'000.0));
-    }
-    pollfd p{fds[0], POLLIN, 0};
-    const int ready = ::poll(&p, 1, wait_ms);
-    if (ready < 0 && errno == EINTR) continue;
-    if (ready <= 0) continue;  // The deadline is checked above.
-    char buf[4096];
-    const ssize_t n = ::read(fds[0], buf, sizeof buf);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) break;  // The child is done (or closed the pipe in dying).
-    announced.append(buf, static_cast<std::size_t>(n));
-    for (std::size_t nl; (nl = announced.find('\n')) != std::string::npos; announced.erase(0, nl + 1))
-      current = announced.substr(0, nl);
-  }
-  ::close(fds[0]);
-  if (timed_out) ::kill(pid, SIGKILL);
-  int status = 0;
-  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-  }
-  if (!timed_out && WIFEXITED(status)) return WEXITSTATUS(status);
+  const ChildOutcome child = run_in_child(
+      [&](int fd) {
+        int code = kExitInternal;
+        try {
+          code = import_and_write(args, options, grid, names_out, fd);
+        } catch (const std::exception& e) {
+          std::fprintf(stderr, "voxvis: internal error: %s\n", e.what());
+        }
+        return code;
+      },
+      args.timeout,
+      [&](std::string_view chunk) {
+        announced.append(chunk);
+        for (std::size_t nl; (nl = announced.find('\n')) != std::string::npos; announced.erase(0, nl + 1))
+          current = announced.substr(0, nl);
+      });
+  if (!child.error.empty()) return report_message("cannot start the import: " + child.error);
+  if (child.exited()) return child.exit_code();
   // The child died: its temporaries (OutputFile's "<path>.tmp-<pid>") go.
   for (const std::string& out : {args.scene_out, names_out})
-    std::remove((out + ".tmp-" + std::to_string(static_cast<long>(pid))).c_str());
-  if (timed_out)
+    std::remove((out + ".tmp-" + std::to_string(static_cast<long>(child.pid))).c_str());
+  if (child.timed_out)
     return report(FormatError{current, 0, "",
                               "no result after " + number_text(args.timeout) +
                                   " s (--timeout): the model reader is stuck on this file (a malformed file can make "
                                   "it loop forever); give a larger --timeout if the file is only large"});
-  const int sig = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
+  const int sig = child.signal();
   if (sig == SIGKILL)
     return report(FormatError{current, 0, "", "the import was killed (" + signal_text(sig) +
                                                   "), most likely for running out of memory on this file"});

@@ -8,8 +8,8 @@
 // outlives the timeout gives an error naming the file.
 #include "model_loader.h"
 
-#include <poll.h>
-#include <sys/wait.h>
+#include "child_process.h"
+
 #include <unistd.h>
 
 #include <algorithm>
@@ -96,49 +96,19 @@ bool decode(const std::string& data, Status* st, std::shared_ptr<const Mesh>* ou
 
 Status load_isolated(const std::string& path, const std::string& name, double timeout_s,
                      std::shared_ptr<const Mesh>* out) {
-  int fds[2];
-  if (::pipe(fds) != 0) return Status::Error(path, std::string("cannot create a pipe: ") + std::strerror(errno));
-  std::fflush(nullptr);
-  const pid_t pid = ::fork();
-  if (pid < 0) return Status::Error(path, std::string("cannot start the model reader: ") + std::strerror(errno));
-  if (pid == 0) {
-    ::close(fds[0]);
-    child(fds[1], path, name);
-    ::_exit(0);
-  }
-  ::close(fds[1]);
   std::string data;
-  const auto start = std::chrono::steady_clock::now();
-  bool timed_out = false;
-  for (;;) {
-    int wait_ms = -1;
-    if (timeout_s > 0.0) {
-      const double left = timeout_s - std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      if (left <= 0.0) {
-        timed_out = true;
-        break;
-      }
-      wait_ms = static_cast<int>(std::min(left * 1000.0 + 1.0, 60'000.0));
-    }
-    pollfd p{fds[0], POLLIN, 0};
-    const int ready = ::poll(&p, 1, wait_ms);
-    if (ready <= 0) continue;  // EINTR or the deadline, checked above.
-    char buf[1 << 16];
-    const ssize_t n = ::read(fds[0], buf, sizeof buf);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) break;
-    data.append(buf, static_cast<std::size_t>(n));
-  }
-  ::close(fds[0]);
-  if (timed_out) ::kill(pid, SIGKILL);
-  int status = 0;
-  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-  }
-  if (timed_out)
+  const ChildOutcome c = run_in_child(
+      [&](int fd) {
+        child(fd, path, name);
+        return 0;
+      },
+      timeout_s, [&](std::string_view chunk) { data.append(chunk); });
+  if (!c.error.empty()) return Status::Error(path, "cannot start the model reader: " + c.error);
+  if (c.timed_out)
     return Status::Error(path, "no result after " + number_text(timeout_s) +
                                    " s: the model reader is stuck on this file (a malformed file can make it loop)");
-  if (WIFSIGNALED(status))
-    return Status::Error(path, "the model reader crashed on this file (signal " + std::to_string(WTERMSIG(status)) +
+  if (c.signal() != 0)
+    return Status::Error(path, "the model reader crashed on this file (" + signal_text(c.signal()) +
                                    "): it is malformed, or uses a feature the reader (assimp) mishandles");
   Status st;
   if (!decode(data, &st, out)) return Status::Error(path, "the model reader ended without an answer");

@@ -273,6 +273,19 @@ Status prepare(const SceneDesc& desc, const SceneOptions& options, Scene::Impl& 
   return Status::Ok();
 }
 
+/// A static mesh's vertices placed and mapped to grid coordinates, and how
+/// far a voxel (or brick) is grown for their rounding: the placement's and
+/// the mapping's (slop) allowances, in voxels.
+struct GridMesh {
+  std::vector<Vec3> g;
+  Vec3 grow{0.0};
+  GridMesh(const Scene::Impl& s, const Obj& o) : g(o.mesh->vertices.size()) {
+    const ObjectDesc d = o.mesh_desc();
+    for (std::size_t i = 0; i < g.size(); ++i) g[i] = s.to_grid(place(d, o.mesh->vertices[i]));
+    grow = (o.mesh_allowance() + s.slop(max_abs(o.center) + max_abs(o.half))) * s.inv_vs + 1e-9;
+  }
+};
+
 /// The voxels static mesh `o` touches, from its triangles: each triangle
 /// against the voxels of its own box, by the separating-axis test with the
 /// voxel grown by the rounding allowance of placing and mapping its
@@ -280,13 +293,10 @@ Status prepare(const SceneDesc& desc, const SceneOptions& options, Scene::Impl& 
 /// emit(0, voxel) once a voxel, in index order. False when cancelled.
 template <class Emit>
 bool mesh_voxels(const Scene::Impl& s, const Obj& o, BuildMeter& meter, Emit&& emit) {
-  const ObjectDesc d = o.mesh_desc();
   const Mesh& mesh = *o.mesh;
-  std::vector<Vec3> g(mesh.vertices.size());
-  for (std::size_t i = 0; i < g.size(); ++i) g[i] = s.to_grid(place(d, mesh.vertices[i]));
-  // Placement and mapping (slop) allowances.
-  const double sl = o.mesh_allowance() + s.slop(max_abs(o.center) + max_abs(o.half));
-  const Vec3 grow = sl * s.inv_vs + 1e-9;
+  const GridMesh gm(s, o);
+  const std::vector<Vec3>& g = gm.g;
+  const Vec3 grow = gm.grow;
   std::vector<std::int64_t> voxels;
   for (const auto& t : mesh.triangles) {
     const Vec3 &a = g[t[0]], &b = g[t[1]], &c = g[t[2]];
@@ -722,13 +732,11 @@ template <class Emit>
 bool mesh_triangle_bricks(const Scene::Impl& s, const Obj& o, BuildMeter& meter, Emit&& emit) {
   const int side = 1 << detail::kBrickShift;
   const glm::ivec3 bres = s.pyr.res[1];
-  const ObjectDesc d = o.mesh_desc();
   const Mesh& mesh = *o.mesh;
-  std::vector<Vec3> g(mesh.vertices.size());
-  for (std::size_t i = 0; i < g.size(); ++i) g[i] = s.to_grid(place(d, mesh.vertices[i]));
+  const GridMesh gm(s, o);
+  const std::vector<Vec3>& g = gm.g;
   {
-    const double sl = o.mesh_allowance() + s.slop(max_abs(o.center) + max_abs(o.half));
-    const Vec3 grow = sl * s.inv_vs + 1e-9;
+    const Vec3 grow = gm.grow;
     const Vec3 half = Vec3(0.5 * side) + grow;
     for (std::uint32_t t = 0; t < mesh.triangles.size(); ++t) {
       const auto& tri = mesh.triangles[t];
@@ -785,11 +793,9 @@ Status build_mesh_interiors(Scene::Impl& s, BuildMeter& meter) {
   bool any = false;
   for (const std::uint32_t slot : meshes) {
     const Obj& o = s.objs[slot];
-    const ObjectDesc d = o.mesh_desc();
-    std::vector<Vec3> g(o.mesh->vertices.size());
-    for (std::size_t i = 0; i < g.size(); ++i) g[i] = s.to_grid(place(d, o.mesh->vertices[i]));
+    const GridMesh gm(s, o);
     const VoxBox range = s.touch_range(o.box_lo(), o.box_hi(), s.slop(max_abs(o.center) + max_abs(o.half)));
-    detail::inside_voxel_centres(g, *o.mesh, range, [&](int x, int y, int z) {
+    detail::inside_voxel_centres(gm.g, *o.mesh, range, [&](int x, int y, int z) {
       std::uint8_t& f = s.vflags[static_cast<std::size_t>(s.index(x, y, z))];
       if (!(f & Scene::Impl::kMeshTouched)) {
         f |= Scene::Impl::kMeshInside;

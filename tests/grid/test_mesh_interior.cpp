@@ -81,14 +81,6 @@ bool inside_by_parity(const ObjectDesc& o, const Vec3& p) {
   return crossings % 2 == 1;
 }
 
-SceneDesc grid_of(int n) {
-  SceneDesc d;
-  d.bounds_min = Vec3(0.0);
-  d.bounds_max = Vec3(static_cast<double>(n));
-  d.grid = glm::ivec3(n);
-  return d;
-}
-
 /// The voxels the engine marks inside a closed mesh.
 std::vector<glm::ivec3> inside_voxels(const Scene& scene) {
   std::vector<glm::ivec3> out;
@@ -131,7 +123,7 @@ TEST(MeshInterior, InteriorVoxelsLieInsideTheTriangles) {
   int checked = 0;
   for (int trial = 0; trial < scaled(24); ++trial) {
     SCOPED_TRACE("trial " + std::to_string(trial));
-    SceneDesc d = grid_of(32);
+    SceneDesc d = unit_grid(32);
     std::shared_ptr<const Mesh> mesh;
     // What encloses the mesh's inside: the mesh itself, but for the hollow
     // box, whose cavity OpenVDB's flood fill (from the unbounded outside)
@@ -172,7 +164,7 @@ TEST(MeshInterior, InteriorVoxelsLieInsideTheTriangles) {
 }
 
 TEST(MeshInterior, OpenMeshesAndTheBufferOffHaveNone) {
-  SceneDesc d = grid_of(32);
+  SceneDesc d = unit_grid(32);
   auto open = std::make_shared<Mesh>(*tiled_box(Vec3(1.0), 3));
   open->triangles.pop_back();
   d.objects.push_back(mesh_object(1, open, Vec3(16.0), Quat(1, 0, 0, 0), 8.0));
@@ -194,7 +186,7 @@ TEST(MeshInterior, InteriorsCloseTheSeamsOfATiledWall) {
   // ball behind it. Made open (one triangle missing, on its far side) it has
   // no interior, and the ball stays in the PVS.
   for (bool closed : {true, false}) {
-    SceneDesc d = grid_of(32);
+    SceneDesc d = unit_grid(32);
     // 24 x 24 x 4 voxels (the model itself stretched: a placement's scale
     // is uniform).
     auto wall = std::make_shared<Mesh>(*tiled_box(Vec3(12.0, 12.0, 2.0), 8));
@@ -237,7 +229,7 @@ TEST(MeshInterior, DynamicInteriorsCloseSeamsWhereverTheMeshIs) {
   // interior, drawn at its placement, hides the ball; open, its seams let
   // the ball show.
   for (bool closed : {true, false}) {
-    SceneDesc d = grid_of(32);
+    SceneDesc d = unit_grid(32);
     auto wall = std::make_shared<Mesh>(*tiled_box(Vec3(12.0, 12.0, 2.0), 8));
     if (!closed) wall->triangles.pop_back();
     ObjectDesc w = mesh_object(1, wall, Vec3(16.0, 16.0, 12.0));
@@ -275,7 +267,7 @@ TEST(MeshInterior, ZeroMissesWithTheEyeInAMovingClosedMesh) {
   // A closed dynamic mesh (a vehicle: a tiled box, and a hollow one) carries
   // the eye and balls inside it while it moves and turns; other cameras
   // watch it from outside and from its walls.
-  SceneDesc d = grid_of(40);
+  SceneDesc d = unit_grid(40);
   const std::shared_ptr<const Mesh> shells[2] = {tiled_box(Vec3(1.0), 3), hollow_box(2)};
   for (int k = 0; k < 2; ++k) {
     ObjectDesc v = mesh_object(static_cast<ObjectId>(k + 1), shells[k], Vec3(12.0 + 16.0 * k, 20.0, 20.0), Quat(1, 0, 0, 0), 6.0);
@@ -324,7 +316,7 @@ TEST(MeshInterior, ZeroMissesWithTheEyeInAMovingClosedMesh) {
 /// inside (the hollow box's cavity too): every frame checked against the ray caster, which sees a mesh as
 /// its triangles (an eye inside a closed mesh sees what is inside it).
 TEST(MeshInterior, ZeroMissesWithTheEyeOutsideOnAndInsideClosedMeshes) {
-  SceneDesc d = grid_of(40);
+  SceneDesc d = unit_grid(40);
   d.objects.push_back(mesh_object(1, tiled_box(Vec3(10.0, 6.0, 12.0), 4), Vec3(14.0, 12.0, 16.0)));
   d.objects.push_back(mesh_object(2, icosphere(2), Vec3(30.0, 12.0, 28.0), Quat(1, 0, 0, 0), 6.0));
   d.objects.push_back(mesh_object(3, tiled_box(Vec3(1.0), 2, true), Vec3(30.0, 30.0, 10.0),

@@ -47,13 +47,6 @@ ObjectDesc quad(ObjectId id, double h) {
   return mesh_object(id, {Vec3(-h, -h, 0), Vec3(h, -h, 0), Vec3(h, h, 0), Vec3(-h, h, 0)}, {{0, 1, 2}, {0, 2, 3}});
 }
 
-SceneDesc unit_grid(int n) {
-  SceneDesc d;
-  d.bounds_min = Vec3(0.0);
-  d.bounds_max = Vec3(static_cast<double>(n));
-  d.grid = glm::ivec3(n);
-  return d;
-}
 
 TEST(MeshScene, StaticMeshVoxelsComeFromItsTrianglesNotItsBox) {
   // A thin sliver along the grid's diagonal: its box is the whole grid, its

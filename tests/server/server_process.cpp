@@ -1,5 +1,7 @@
 #include "server_process.h"
 
+#include <nlohmann/json.hpp>
+
 #include <arpa/inet.h>
 #include <fcntl.h>
 #include <netinet/in.h>
@@ -891,6 +893,33 @@ SceneDesc lattice_scene(int count, int grid, std::uint64_t seed) {
     d.objects.push_back(o);
   }
   return d;
+}
+
+/// Compares two output files of `voxvis replay` format: every line's frame,
+/// pvs, wake and every stats counter but the times (time_us and its split).
+void expect_same_output(const std::string& expected_text, const std::string& actual_text,
+                        const std::string& what) {
+  const std::vector<std::string> expected = lines_of(expected_text);
+  const std::vector<std::string> actual = lines_of(actual_text);
+  ASSERT_EQ(actual.size(), expected.size()) << what;
+  for (std::size_t i = 0; i < expected.size(); ++i) {
+    SCOPED_TRACE(what + ", line " + std::to_string(i + 1));
+    const nlohmann::json e = nlohmann::json::parse(expected[i], nullptr, false);
+    const nlohmann::json a = nlohmann::json::parse(actual[i], nullptr, false);
+    ASSERT_FALSE(e.is_discarded()) << expected[i];
+    ASSERT_FALSE(a.is_discarded()) << actual[i];
+    EXPECT_EQ(a.at("frame"), e.at("frame"));
+    EXPECT_EQ(a.at("pvs"), e.at("pvs"));
+    EXPECT_EQ(a.at("wake"), e.at("wake"));
+    nlohmann::json es = e.at("stats"), as = a.at("stats");
+    for (const char* timing : {"time_us", "traverse_us", "render_us", "retest_us"}) {
+      ASSERT_TRUE(es.contains(timing)) << timing;
+      ASSERT_TRUE(as.contains(timing)) << timing;
+      es.erase(timing);
+      as.erase(timing);
+    }
+    EXPECT_EQ(as, es);
+  }
 }
 
 }  // namespace voxvis::servertest

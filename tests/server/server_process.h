@@ -386,4 +386,9 @@ SceneDesc lattice_scene(int count, int grid, std::uint64_t seed);
 /// hold about objects x voxels entries (the careless admin's scene).
 SceneDesc huge_footprint_scene(int count);
 
+/// Compares two output files of `voxvis replay` format: every line's frame,
+/// pvs, wake and every stats counter but the times (time_us and its split).
+void expect_same_output(const std::string& expected_text, const std::string& actual_text,
+                        const std::string& what);
+
 }  // namespace voxvis::servertest

@@ -339,6 +339,14 @@ SceneDesc transform_scene(const SceneDesc& scene, double scale, const Vec3& offs
   return out;
 }
 
+SceneDesc unit_grid(int n) {
+  SceneDesc d;
+  d.bounds_min = Vec3(0.0);
+  d.bounds_max = Vec3(static_cast<double>(n));
+  d.grid = glm::ivec3(n);
+  return d;
+}
+
 Camera camera_along(const Vec3& eye, const Vec3& dir, double fov_y_deg, double aspect, double near,
                     double far) {
   Camera c;

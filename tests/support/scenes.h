@@ -105,6 +105,9 @@ class Mover {
   Rng rng_;
 };
 
+/// An empty scene over [0, n]^3 with n^3 unit voxels.
+SceneDesc unit_grid(int n);
+
 /// A camera at `eye` looking along `dir`, up +y (dir must not be vertical),
 /// with the given lens.
 Camera camera_along(const Vec3& eye, const Vec3& dir, double fov_y_deg = 60.0, double aspect = 1.0,
