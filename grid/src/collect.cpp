@@ -141,8 +141,7 @@ void Collector::render_opaque_box_at(std::uint32_t b) {
 
 bool mesh_tip_clear(const Scene::Impl& s, const WorldFrustum& wf) {
   Vec3 lo = wf.eye, hi = wf.eye;
-  for (int k = 0; k < 4; ++k) {
-    const Vec3 c = wf.eye + wf.near * (wf.f + ((k & 1) ? 1.0 : -1.0) * wf.tan_x * wf.r + ((k & 2) ? 1.0 : -1.0) * wf.tan_y * wf.u);
+  for (const Vec3& c : wf.tip()) {
     lo = glm::min(lo, c);
     hi = glm::max(hi, c);
   }
@@ -212,10 +211,7 @@ bool Collector::model_tip_clear(const Obj& o) const {
   const ModelInterior& in = *o.interior;
   const Quat qi = glm::conjugate(o.mesh_rotation);
   Vec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
-  for (int k = 0; k < 5; ++k) {
-    const Vec3 w = k == 4 ? wf_.eye
-                          : wf_.eye + wf_.near * (wf_.f + ((k & 1) ? 1.0 : -1.0) * wf_.tan_x * wf_.r +
-                                                 ((k & 2) ? 1.0 : -1.0) * wf_.tan_y * wf_.u);
+  for (const Vec3& w : wf_.tip()) {
     const Vec3 m = (qi * (w - o.mesh_origin)) / o.mesh_scale;
     lo = glm::min(lo, m);
     hi = glm::max(hi, m);

@@ -43,6 +43,16 @@ struct WorldFrustum {
   /// True unless the box [lo, hi] is certainly outside the frustum
   /// (separating plane test with a small margin: errs towards "inside").
   bool may_intersect_box(const Vec3& lo, const Vec3& hi) const;
+
+  /// The frustum's tip: the four corners of the near rectangle, then the
+  /// eye (every ray starts in their hull).
+  std::array<Vec3, 5> tip() const {
+    std::array<Vec3, 5> p;
+    for (int k = 0; k < 4; ++k)
+      p[static_cast<std::size_t>(k)] = eye + near * (f + ((k & 1) ? 1.0 : -1.0) * tan_x * r + ((k & 2) ? 1.0 : -1.0) * tan_y * u);
+    p[4] = eye;
+    return p;
+  }
 };
 
 WorldFrustum make_world_frustum(const Camera& camera);
