@@ -122,6 +122,20 @@ int run_scenes(const NetArgs& net);
 
 int run_delete(const NetArgs& net, const std::string& id);
 
+/// Exit status of `health` when the server does not answer SERVING (or not
+/// at all within the timeout).
+inline constexpr int kExitNotServing = 4;
+
+struct HealthArgs {
+  NetArgs net;                ///< Only the address and TLS options are used: no token is needed.
+  std::string service;        ///< Health service name; "": the whole server.
+  double timeout = 5.0;       ///< Seconds to wait for the connection and the answer.
+};
+
+/// Prints the server's health status (SERVING, NOT_SERVING, ...): exit 0 when
+/// SERVING, kExitNotServing otherwise or without an answer in time.
+int run_health(const HealthArgs& args);
+
 struct ViewArgs {
   NetArgs net;
   std::string scene;   ///< Scene id on the server.

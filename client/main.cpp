@@ -58,7 +58,8 @@ int run(int argc, char** argv) {
       "\n"
       "Exit status: 0 success, 2 invalid input or arguments (the message names\n"
       "file:line: field) or an error from the server (its code and message),\n"
-      "1 internal error, 3 (verify) a visible object missing from a PVS.");
+      "1 internal error, 3 (verify) a visible object missing from a PVS, 4 (health)\n"
+      "the server is not serving.");
   app.failure_message([](const CLI::App* /*app*/, const CLI::Error& e) {
     return std::string("voxvis: error: ") + e.what() + "\nRun with --help for more information.\n";
   });
@@ -349,6 +350,22 @@ int run(int argc, char** argv) {
   delete_cmd->add_option("--id", delete_id, "Scene id")->required()->type_name("ID");
   delete_cmd->footer("Its open streams end with NOT_FOUND. Needs an admin token.");
 
+  // voxvis health
+  voxvis::cli::HealthArgs health;
+  CLI::App* health_cmd = app.add_subcommand(
+      "health", "Ask a server's health service (grpc.health.v1) whether it serves.");
+  add_net_options(health_cmd, &health.net);
+  health_cmd->add_option("--service", health.service, "Health service name; default: the whole server")
+      ->type_name("NAME");
+  health_cmd->add_option("--timeout", health.timeout, "Seconds to wait for the connection and the answer")
+      ->capture_default_str()
+      ->type_name("SECONDS");
+  health_cmd->footer(
+      "Prints the status (SERVING, NOT_SERVING, ...). Exit status: 0 SERVING, 4 not\n"
+      "serving, unknown, unreachable or no answer within the timeout, 2 bad arguments.\n"
+      "No token is needed. For container health checks and scripts; Kubernetes asks\n"
+      "the same service with its native gRPC probes.");
+
   // voxvis view
   voxvis::cli::ViewArgs view;
   CLI::App* view_cmd = app.add_subcommand(
@@ -503,6 +520,7 @@ int run(int argc, char** argv) {
   if (load_cmd->parsed()) return voxvis::cli::run_load(load);
   if (scenes_cmd->parsed()) return voxvis::cli::run_scenes(scenes_net);
   if (delete_cmd->parsed()) return voxvis::cli::run_delete(delete_net, delete_id);
+  if (health_cmd->parsed()) return voxvis::cli::run_health(health);
   if (view_cmd->parsed()) return voxvis::cli::run_view(view);
   if (tick_cmd->parsed()) return voxvis::cli::run_tick(tick);
   if (sim_cmd->parsed()) return voxvis::cli::run_simulate(sim);
