@@ -104,10 +104,25 @@ int run_generate(const GenerateArgs& args);
 /// Options of every command that talks to voxvis-server.
 struct NetArgs {
   std::string server = "127.0.0.1:50051";  ///< HOST:PORT.
+  /// A fleet, "[NAME=]HOST:PORT,..." (voxvis/routing.h); empty: `server` alone.
+  std::string servers;
   std::string token_file;       ///< Bearer token file; empty: $VOXVIS_TOKEN_FILE, else none.
   std::string tls_ca;           ///< PEM roots; non-empty enables TLS.
   std::string tls_server_name;  ///< Name checked against the server's certificate.
 };
+
+/// With a fleet (`net->servers`), points `net->server` at the owner of
+/// `scene_id`. On error (a bad list) reports it, sets `*exit_code` and
+/// returns false.
+bool route_scene(NetArgs* net, const std::string& scene_id, int* exit_code);
+
+struct RebalanceArgs {
+  NetArgs net;           ///< servers: the fleet as it is now.
+  bool dry_run = false;  ///< Print the moves only.
+};
+
+/// `voxvis rebalance`: every scene of the fleet to its owner.
+int run_rebalance(const RebalanceArgs& args);
 
 struct LoadArgs {
   NetArgs net;

@@ -14,6 +14,7 @@
 #include "cli.h"
 #include "voxvis/client.h"
 #include "voxvis/format.h"
+#include "voxvis/routing.h"
 
 namespace voxvis::cli {
 
@@ -79,6 +80,11 @@ bool about_input(grpc::StatusCode code);
 /// `channel_index` > 0 asks for a connection of its own.
 std::unique_ptr<client::Client> open_client(const NetArgs& net, int* exit_code,
                                             int channel_index = 0);
+
+/// The servers a command visits: the fleet of `net.servers`, else `net.server`
+/// alone (named by its address). On error (a bad list) reports it, sets
+/// `*exit_code` and returns false.
+bool fleet_of(const NetArgs& net, std::vector<routing::Shard>* shards, int* exit_code);
 
 /// Loads the token as open_client does. On error reports it and returns false.
 bool resolve_token(const NetArgs& net, std::string* token);

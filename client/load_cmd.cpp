@@ -10,6 +10,7 @@
 #include "model_loader.h"
 #include "voxvis/client.h"
 #include "voxvis/format.h"
+#include "voxvis/routing.h"
 
 namespace voxvis::cli {
 namespace {
@@ -63,33 +64,50 @@ int run_load(const LoadArgs& args) {
   if (models > 0) text = scene_to_json(desc);
 
   int code = kExitOk;
-  const std::unique_ptr<client::Client> client = open_client(args.net, &code);
+  NetArgs net = args.net;
+  if (!route_scene(&net, id, &code)) return code;
+  const std::unique_ptr<client::Client> client = open_client(net, &code);
   if (client == nullptr) return code;
   v1::SceneInfo info;
   // The text itself, not a description: the server keeps it as written and
   // names its lines in errors (for example a grid over its memory budget).
   if (const grpc::Status st = client->create_scene(id, text, &info); !st.ok()) {
-    return report_status(st, args.net.server, about_input(st.error_code()) ? args.scene : "");
+    return report_status(st, net.server, about_input(st.error_code()) ? args.scene : "");
   }
+  if (!net.servers.empty()) std::printf("%s: on %s\n", id.c_str(), net.server.c_str());
   std::printf("%s: grid %s, %u objects (%u dynamic)%s\n", info.scene_id().c_str(), grid_text(info).c_str(),
               info.objects(), info.dynamic_objects(), mesh_text(info).c_str());
   return kExitOk;
 }
 
 int run_scenes(const NetArgs& net) {
-  int code = kExitOk;
-  const std::unique_ptr<client::Client> client = open_client(net, &code);
-  if (client == nullptr) return code;
-  std::vector<v1::SceneInfo> scenes;
-  if (const grpc::Status st = client->list_scenes(&scenes); !st.ok()) {
-    return report_status(st, net.server, "");
+  // One server, or every server of a fleet (each line then starts with its shard).
+  std::vector<routing::Shard> shards;
+  if (int code = kExitOk; !fleet_of(net, &shards, &code)) return code;
+  int result = kExitOk;
+  for (const routing::Shard& shard : shards) {
+    NetArgs one = net;
+    one.server = shard.address;
+    int code = kExitOk;
+    const std::unique_ptr<client::Client> client = open_client(one, &code);
+    if (client == nullptr) return code;
+    v1::ListScenesResponse list;
+    if (const grpc::Status st = client->list_scenes(&list); !st.ok()) {
+      result = report_status(st, one.server, "");
+      continue;
+    }
+    const std::string prefix = net.servers.empty() ? "" : shard.name + " ";
+    for (const v1::SceneInfo& s : list.scenes()) {
+      std::printf("%s%s: grid %s, %u objects (%u dynamic)%s, %u viewers, %s frames served\n", prefix.c_str(),
+                  s.scene_id().c_str(), grid_text(s).c_str(), s.objects(), s.dynamic_objects(),
+                  mesh_text(s).c_str(), s.viewers(), with_commas(s.frames_served()).c_str());
+    }
+    for (const v1::MisplacedScene& m : list.misplaced()) {
+      std::printf("%s%s: kept for shard %s, not served (voxvis rebalance moves it)\n", prefix.c_str(),
+                  m.scene_id().c_str(), m.owner().c_str());
+    }
   }
-  for (const v1::SceneInfo& s : scenes) {
-    std::printf("%s: grid %s, %u objects (%u dynamic)%s, %u viewers, %s frames served\n",
-                s.scene_id().c_str(), grid_text(s).c_str(), s.objects(), s.dynamic_objects(),
-                mesh_text(s).c_str(), s.viewers(), with_commas(s.frames_served()).c_str());
-  }
-  return kExitOk;
+  return result;
 }
 
 int run_delete(const NetArgs& net, const std::string& id) {

@@ -17,11 +17,22 @@
 
 namespace {
 
-/// The options of every command that talks to voxvis-server.
-void add_net_options(CLI::App* cmd, voxvis::cli::NetArgs* net) {
-  cmd->add_option("--server", net->server, "Server address")
-      ->capture_default_str()
-      ->type_name("HOST:PORT");
+/// The options of every command that talks to voxvis-server; with `fleet`,
+/// --servers too (the commands that name a scene, and those that visit every
+/// server).
+void add_net_options(CLI::App* cmd, voxvis::cli::NetArgs* net, bool fleet = true) {
+  CLI::Option* server = cmd->add_option("--server", net->server, "Server address")
+                            ->capture_default_str()
+                            ->type_name("HOST:PORT");
+  if (fleet) {
+    cmd->add_option("--servers", net->servers,
+                    "A fleet instead of one server: each scene goes to its owner by rendezvous hashing "
+                    "over the shards' names (an entry without NAME= is named by its host's first DNS "
+                    "label, a StatefulSet pod's name, or by HOST:PORT for an IP address; "
+                    "docs/deploy.md)")
+        ->type_name("[NAME=]HOST:PORT,...")
+        ->excludes(server);
+  }
   cmd->add_option("--token-file", net->token_file,
                   "File holding the bearer token (first non-comment line); default "
                   "$VOXVIS_TOKEN_FILE, else no token. Never pass tokens on the command line.")
@@ -350,11 +361,25 @@ int run(int argc, char** argv) {
   delete_cmd->add_option("--id", delete_id, "Scene id")->required()->type_name("ID");
   delete_cmd->footer("Its open streams end with NOT_FOUND. Needs an admin token.");
 
+  // voxvis rebalance
+  voxvis::cli::RebalanceArgs rebalance;
+  CLI::App* rebalance_cmd = app.add_subcommand(
+      "rebalance", "Move every scene of a fleet to the server that owns it (after the fleet changed).");
+  add_net_options(rebalance_cmd, &rebalance.net);
+  rebalance_cmd->get_option("--servers")->required();
+  rebalance_cmd->add_flag("--dry-run", rebalance.dry_run, "Print the moves without making them");
+  rebalance_cmd->footer(
+      "Lists every server's scenes (those served, and those a server keeps for another\n"
+      "shard); each scene not on its owner is exported (its scene file and its dynamic\n"
+      "objects' current positions), created on the owner, then deleted where it was.\n"
+      "One line per move. A scene found on two servers is left alone and reported.\n"
+      "Needs an admin token on every server. Exit status 2 when any move failed.");
+
   // voxvis health
   voxvis::cli::HealthArgs health;
   CLI::App* health_cmd = app.add_subcommand(
       "health", "Ask a server's health service (grpc.health.v1) whether it serves.");
-  add_net_options(health_cmd, &health.net);
+  add_net_options(health_cmd, &health.net, false);
   health_cmd->add_option("--service", health.service, "Health service name; default: the whole server")
       ->type_name("NAME");
   health_cmd->add_option("--timeout", health.timeout, "Seconds to wait for the connection and the answer")
@@ -517,14 +542,21 @@ int run(int argc, char** argv) {
   if (report_cmd->parsed()) return voxvis::cli::run_report(rep);
   if (gen_cmd->parsed()) return voxvis::cli::run_generate(gen);
   if (import_cmd->parsed()) return voxvis::cli::run_import(imp);
+  // A fleet (--servers): the scene's owner is the server.
+  int route_code = kExitOk;
+  const auto routed = [&route_code](voxvis::cli::NetArgs* net, const std::string& scene) {
+    return voxvis::cli::route_scene(net, scene, &route_code);
+  };
   if (load_cmd->parsed()) return voxvis::cli::run_load(load);
   if (scenes_cmd->parsed()) return voxvis::cli::run_scenes(scenes_net);
-  if (delete_cmd->parsed()) return voxvis::cli::run_delete(delete_net, delete_id);
+  if (delete_cmd->parsed()) return routed(&delete_net, delete_id) ? voxvis::cli::run_delete(delete_net, delete_id) : route_code;
+  if (rebalance_cmd->parsed()) return voxvis::cli::run_rebalance(rebalance);
   if (health_cmd->parsed()) return voxvis::cli::run_health(health);
-  if (view_cmd->parsed()) return voxvis::cli::run_view(view);
-  if (tick_cmd->parsed()) return voxvis::cli::run_tick(tick);
-  if (sim_cmd->parsed()) return voxvis::cli::run_simulate(sim);
-  if (loadgen_cmd->parsed()) return voxvis::cli::run_loadgen(gen_load);
+  if (view_cmd->parsed()) return routed(&view.net, view.scene) ? voxvis::cli::run_view(view) : route_code;
+  if (tick_cmd->parsed()) return routed(&tick.net, tick.scene) ? voxvis::cli::run_tick(tick) : route_code;
+  if (sim_cmd->parsed()) return routed(&sim.net, sim.scene) ? voxvis::cli::run_simulate(sim) : route_code;
+  if (loadgen_cmd->parsed())
+    return routed(&gen_load.net, gen_load.scene) ? voxvis::cli::run_loadgen(gen_load) : route_code;
   return kExitError;  // Unreachable: a subcommand is required.
 }
 

@@ -8,7 +8,7 @@ VOXVIS_PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev
   clang libclang-rt-14-dev llvm
   libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc grpc-proto prometheus-cpp-dev
-  libcurl4-openssl-dev
+  libcurl4-openssl-dev libssl-dev
   openssl
   libegl-dev libopengl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri
   gnuplot-nox

@@ -114,6 +114,16 @@ int run(int argc, char** argv) {
       ->type_name("N");
   app.add_flag("--reflection", config.reflection,
                "Serve gRPC server reflection, which answers without a token: trusted networks only");
+  app.add_option("--shard", config.shard,
+                 "This server's name in a fleet (a StatefulSet pod's name); with --fleet it serves "
+                 "only the scenes rendezvous hashing gives it and refuses the others, naming their "
+                 "shard (docs/deploy.md)")
+      ->type_name("NAME");
+  app.add_option("--fleet", config.fleet,
+                 "Every shard's name, comma-separated, this server's included: the names clients "
+                 "route over (voxvis --servers)")
+      ->delimiter(',')
+      ->type_name("NAME,...");
   app.add_option("--port-file", config.port_file,
                  "Write the bound port to this file once serving (for scripts, with port 0)")
       ->type_name("FILE");

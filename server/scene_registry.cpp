@@ -56,8 +56,46 @@ grpc::Status SceneRegistry::id_free_locked(const std::string& id) const {
   return grpc::Status::OK;
 }
 
+Status place_dynamic(SceneDesc* desc, const std::vector<Move>& moves, bool strict, const std::string& field) {
+  std::map<ObjectId, std::size_t> at;
+  for (std::size_t i = 0; i < moves.size(); ++i) {
+    if (!at.emplace(moves[i].id, i).second && strict)
+      return Status::Error(field + "[" + std::to_string(i) + "].id",
+                           "object " + std::to_string(moves[i].id) + " is given twice");
+  }
+  std::size_t placed = 0;
+  for (ObjectDesc& o : desc->objects) {
+    auto it = at.find(o.id);
+    if (it == at.end()) continue;
+    const Move& m = moves[it->second];
+    const std::string where = field + "[" + std::to_string(it->second) + "]";
+    if (!o.dynamic) {
+      if (strict) return Status::Error(where + ".id", "object " + std::to_string(o.id) + " is not dynamic");
+      continue;
+    }
+    if (m.has_rotation && o.shape != Shape::Mesh) {
+      if (strict)
+        return Status::Error(where + ".rotation", "object " + std::to_string(o.id) + " is not a mesh; only meshes rotate");
+      continue;
+    }
+    o.center = m.center;
+    if (m.has_rotation) o.rotation = m.rotation;
+    ++placed;
+  }
+  if (strict && placed != at.size()) {
+    for (std::size_t i = 0; i < moves.size(); ++i) {
+      const bool known = std::any_of(desc->objects.begin(), desc->objects.end(),
+                                     [&](const ObjectDesc& o) { return o.id == moves[i].id; });
+      if (!known)
+        return Status::Error(field + "[" + std::to_string(i) + "].id",
+                             "no object " + std::to_string(moves[i].id) + " in the scene");
+    }
+  }
+  return Status::Ok();
+}
+
 grpc::Status SceneRegistry::create(const std::string& id, SceneDesc desc, const std::string& json, bool from_json,
-                                   bool persist, const BuildControl* control) {
+                                   bool persist, const BuildControl* control, const StartPositions* start) {
   const SceneOptions& opt = config_.scene_options;
   if (desc.grid) {
     // A grid over the voxel limit is refused as too large, not as wrong.
@@ -149,12 +187,22 @@ grpc::Status SceneRegistry::create(const std::string& id, SceneDesc desc, const 
     std::sort(objects.begin(), objects.end(), [](const ObjectDesc& a, const ObjectDesc& b) { return a.id < b.id; });
     entry->verify_objects = std::make_shared<const std::vector<ObjectDesc>>(std::move(objects));
   }
+  if (start) {
+    // Nothing serves the scene yet: the strand's fields are ours here.
+    entry->scene->apply_moves(start->t, {});
+    entry->time.store(start->t);
+    entry->sim_time.store(start->t);
+    entry->sim_clock_set = true;
+  }
   entry->refresh_wake();
   entry->tbvs_active.store(0);
   // On disk last, so that nothing that can fail comes between the file and
   // the registration.
   if (persist) {
-    if (Status w = store_.save_scene(id, json); !w) {
+    Status w = store_.save_scene(id, json);
+    if (w && start && entry->dynamic_objects > 0) w = store_.save_positions(id, start->t, start->moves);
+    if (!w) {
+      if (Status r = store_.remove_scene(id); !r) log_("cannot remove the files of scene '" + id + "': " + r.str());
       metrics_.remove_scene(id);
       return grpc::Status(grpc::StatusCode::INTERNAL, "cannot store the scene: " + w.str());
     }
@@ -182,26 +230,11 @@ Status SceneRegistry::load(const std::string& id, const std::string& json, const
   if (t) {
     if (Status s = validate_time("t", *t); !s) return Status::Error("", source + ": saved time: " + s.str());
   }
-  if (positions) {
-    std::map<ObjectId, const Move*> at;
-    for (const Move& m : *positions) at[m.id] = &m;
-    for (ObjectDesc& o : desc.objects) {
-      auto it = at.find(o.id);
-      if (!o.dynamic || it == at.end()) continue;
-      o.center = it->second->center;
-      if (it->second->has_rotation && o.shape == Shape::Mesh) o.rotation = it->second->rotation;
-    }
-  }
-  grpc::Status g = create(id, std::move(desc), json, true, persist);
+  if (positions) place_dynamic(&desc, *positions, false, "positions");
+  StartPositions start;
+  if (t) start.t = *t;
+  grpc::Status g = create(id, std::move(desc), json, true, persist, nullptr, t ? &start : nullptr);
   if (!g.ok()) return Status::Error("", source + ": " + g.error_message());
-  if (t) {
-    // Nothing serves the scene yet: the strand's fields are ours here.
-    std::shared_ptr<SceneEntry> e = find(id);
-    e->scene->apply_moves(*t, {});
-    e->time.store(*t);
-    e->sim_time.store(*t);
-    e->sim_clock_set = true;
-  }
   return Status::Ok();
 }
 

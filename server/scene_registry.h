@@ -38,6 +38,20 @@ struct RegistryConfig {
   unsigned workers = 1;
 };
 
+/// Where a scene starts when it is not at its created positions: a
+/// restart's saved positions, or another server's (ExportScene).
+struct StartPositions {
+  double t = 0.0;           ///< Sets the scene's clocks.
+  std::vector<Move> moves;  ///< Saved with the scene when it is persisted.
+};
+
+/// Places the dynamic objects of `desc` that `moves` name at their centres
+/// (a mesh's rotation too). Strict (positions from the wire): every id must
+/// be a dynamic object of the scene, at most once, and only meshes may carry
+/// a rotation; errors name `field`[i]. Not strict (the data directory's
+/// files, checked when written): other ids are ignored.
+Status place_dynamic(SceneDesc* desc, const std::vector<Move>& moves, bool strict, const std::string& field);
+
 class SceneRegistry {
  public:
   using Log = std::function<void(const std::string&)>;
@@ -65,9 +79,11 @@ class SceneRegistry {
   /// allocated; `control` (may be null) cancels the build (CANCELLED, or
   /// UNAVAILABLE when the server is stopping). `json`: the scene as stored;
   /// `from_json` says errors are to name its lines (a scene_json request or
-  /// a file) rather than a description's fields.
+  /// a file) rather than a description's fields. `start` (may be null):
+  /// the clocks' time, set before the scene is registered, and the positions
+  /// (already placed in `desc`) saved with it when `persist`.
   grpc::Status create(const std::string& id, SceneDesc desc, const std::string& json, bool from_json, bool persist,
-                      const BuildControl* control = nullptr);
+                      const BuildControl* control = nullptr, const StartPositions* start = nullptr);
   /// Loads a scene at start (data directory or --scene file), before the
   /// server accepts calls. `positions`, when given, replace the centres of
   /// the dynamic objects they name; `t` sets the scene's clocks. Errors

@@ -23,6 +23,7 @@
 #include "verifier.h"
 #include "pool.h"
 #include "service.h"
+#include "shard.h"
 #include "store.h"
 
 namespace voxvis::server {
@@ -94,6 +95,8 @@ class ServerImpl final : public Server {
       return fail(error, s.field == "occlusion_buffer" ? "--occlusion-buffer: " + s.message
                                                        : "scene options: " + s.str());
     if (config_.max_calls < 1) return fail(error, "--max-calls must be >= 1");
+    ShardIdentity shard;
+    if (!ShardIdentity::make(config_.shard, config_.fleet, &shard, error)) return false;
     VerifyConfig vc;
     if (!(config_.verify_fraction >= 0.0 && config_.verify_fraction <= 1.0))
       return fail(error, "--verify-fraction must be within [0, 1]");
@@ -164,11 +167,22 @@ class ServerImpl final : public Server {
     sc.max_time_step_s = config_.max_time_step_s;
     sc.max_calls = config_.max_calls;
     sc.max_saved_scene_bytes = 4 * static_cast<std::uint64_t>(config_.max_message_bytes);
+    sc.max_message_bytes = static_cast<std::uint64_t>(config_.max_message_bytes);
+    sc.shard = shard;
+    if (shard.enabled()) log_("serving as " + shard.describe());
     service_ = std::make_unique<Service>(sc, *pool_, *builds_, store_, tokens_, *metrics_, log_);
     service_->set_verifier(verifier_.get());
 
     // Scenes acknowledged in earlier runs, at their last saved positions.
     for (const StoredScene& st : store_.load_all(log_)) {
+      // Another shard's (the fleet changed): kept on disk, not built, until
+      // `voxvis rebalance` moves it there.
+      if (std::string owner = shard.other_owner(st.id); !owner.empty()) {
+        service_->add_misplaced(st.id, owner);
+        log_("scene '" + st.id + "' of the data directory belongs to shard '" + owner +
+             "': kept, not served; `voxvis rebalance` moves it there");
+        continue;
+      }
       const std::vector<Move>* pos = st.t ? &st.positions : nullptr;
       if (Status s = service_->load_scene(st.id, st.json, st.json_path, pos, st.t, false); !s) {
         // One bad scene must not keep the others from being served.
@@ -192,6 +206,9 @@ class ServerImpl final : public Server {
       } else {
         id = id_from_path(path);
       }
+      if (std::string owner = shard.other_owner(id); !owner.empty())
+        return fail(error, "--scene " + arg + ": scene '" + id + "' belongs to shard '" + owner +
+                               "', not to this server ('" + shard.self() + "'); load it there");
       if (service_->has_scene(id)) {
         log_("--scene " + path + ": scene '" + id +
              "' is already in the data directory; kept (delete it to load the file again)");

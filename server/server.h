@@ -34,6 +34,11 @@ struct ServerConfig {
   double max_view_lead_s = 1.0;             ///< How far viewers may run beyond the simulation's clock.
   double max_time_step_s = 3600.0;          ///< How far one simulation batch may advance the clock.
   bool reflection = false;                  ///< Serve gRPC server reflection (it needs no token).
+  /// This server's shard name and every shard's (--shard, --fleet; both or
+  /// neither): it then serves only the scenes rendezvous hashing gives it
+  /// (shard.h).
+  std::string shard;
+  std::vector<std::string> fleet;
   /// Options of every scene the server builds (--scene files, CreateScene,
   /// the data directory's scenes at start); occlusion_buffer is
   /// --occlusion-buffer. Checked by start() before anything is loaded.

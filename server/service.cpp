@@ -63,12 +63,23 @@ Service::Service(ServiceConfig config, WorkerPool& pool, WorkerPool& builds, Sce
       builds_(builds),
       tokens_(tokens),
       metrics_(metrics),
+      store_(store),
       log_(std::move(log)),
       fail_scene_(env_text("VOXVIS_TEST_FAIL_SCENE")),
       registry_(RegistryConfig{config_.scene_options, config_.memory_budget_bytes, config_.workers}, pool, store,
                 metrics, log_, stopping_) {}
 
 Service::~Service() = default;
+
+void Service::add_misplaced(const std::string& id, const std::string& owner) {
+  std::lock_guard<std::mutex> lock(misplaced_mu_);
+  misplaced_[id] = owner;
+}
+
+grpc::Status Service::missing(const std::string& id) const {
+  if (std::string owner = config_.shard.other_owner(id); !owner.empty()) return config_.shard.refusal(id, owner);
+  return no_scene(id);
+}
 
 bool Service::add_stream(Stream* s) {
   std::lock_guard<std::mutex> lock(streams_mu_);
@@ -137,7 +148,7 @@ std::shared_ptr<SceneEntry> Service::find_or_finish(UnaryCall* r, const char* me
     return nullptr;
   }
   std::shared_ptr<SceneEntry> e = find(id);
-  if (!e) finish_unary(r, method, no_scene(id));
+  if (!e) finish_unary(r, method, missing(id));
   return e;
 }
 
@@ -174,6 +185,10 @@ grpc::ServerUnaryReactor* Service::CreateScene(grpc::CallbackServerContext* ctx,
   v1::SceneInfo* resp = &r->resp;
   if (grpc::Status s = check_scene_id(req->scene_id()); !s.ok()) {
     finish_unary(r, "CreateScene", s);
+    return reactor;
+  }
+  if (std::string owner = config_.shard.other_owner(req->scene_id()); !owner.empty()) {
+    finish_unary(r, "CreateScene", config_.shard.refusal(req->scene_id(), owner));
     return reactor;
   }
   // Parsing and building a grid take long: off the callback thread, and on
@@ -232,8 +247,18 @@ grpc::ServerUnaryReactor* Service::CreateScene(grpc::CallbackServerContext* ctx,
         default:
           s = Status::Error("content", "missing: set description or scene_json");
       }
+      // Positions another server exported: placed before the build, the
+      // clocks set before the scene is served.
+      StartPositions start;
+      if (s && req->has_positions()) {
+        s = validate_time("positions.t", req->positions().t());
+        if (s) s = moves_from_proto(req->positions().moves(), "positions.moves", &start.moves);
+        if (s) s = place_dynamic(&desc, start.moves, true, "positions.moves");
+        start.t = req->positions().t();
+      }
       g = !too_large.ok() ? too_large
-          : s             ? registry_.create(req->scene_id(), std::move(desc), json, from_json, true, &control)
+          : s             ? registry_.create(req->scene_id(), std::move(desc), json, from_json, true, &control,
+                                             req->has_positions() ? &start : nullptr)
                           : invalid(s);
       if (g.ok()) {
         fill_info(*find(req->scene_id()), resp);
@@ -261,10 +286,25 @@ grpc::ServerUnaryReactor* Service::DeleteScene(grpc::CallbackServerContext* ctx,
     finish_unary(r, "DeleteScene", s);
     return reactor;
   }
-  const grpc::Status g = registry_.remove(req->scene_id(), [this](SceneEntry& e) {
+  grpc::Status g = registry_.remove(req->scene_id(), [this](SceneEntry& e) {
     std::lock_guard<std::mutex> lock(streams_mu_);
     for (Stream* s : streams_) s->stop_if(&e, deleted(e));
   });
+  if (g.error_code() == grpc::StatusCode::NOT_FOUND) {
+    // A scene kept for another shard goes with its files.
+    std::lock_guard<std::mutex> lock(misplaced_mu_);
+    if (misplaced_.count(req->scene_id())) {
+      if (Status rm = store_.remove_scene(req->scene_id()); !rm) {
+        g = grpc::Status(grpc::StatusCode::INTERNAL, "cannot remove the scene's files: " + rm.str());
+      } else {
+        misplaced_.erase(req->scene_id());
+        log_("deleted scene '" + req->scene_id() + "' (kept for another shard)");
+        g = grpc::Status::OK;
+      }
+    } else {
+      g = missing(req->scene_id());
+    }
+  }
   finish_unary(r, "DeleteScene", g);
   return reactor;
 }
@@ -277,6 +317,14 @@ grpc::ServerUnaryReactor* Service::ListScenes(grpc::CallbackServerContext* ctx,
   if (!r) return reactor;
   v1::ListScenesResponse* resp = &r->resp;
   for (const auto& e : registry_.list()) fill_info(*e, resp->add_scenes());
+  {
+    std::lock_guard<std::mutex> lock(misplaced_mu_);
+    for (const auto& [id, owner] : misplaced_) {
+      v1::MisplacedScene* m = resp->add_misplaced();
+      m->set_scene_id(id);
+      m->set_owner(owner);
+    }
+  }
   finish_unary(r, "ListScenes", grpc::Status::OK);
   return reactor;
 }
@@ -293,6 +341,85 @@ grpc::ServerUnaryReactor* Service::GetSceneStats(grpc::CallbackServerContext* ct
   if (!e) return reactor;
   fill_info(*e, resp);
   finish_unary(r, "GetSceneStats", grpc::Status::OK);
+  return reactor;
+}
+
+grpc::ServerUnaryReactor* Service::ExportScene(grpc::CallbackServerContext* ctx,
+                                               const grpc::ByteBuffer* in, grpc::ByteBuffer* out) {
+  grpc::ServerUnaryReactor* reactor = nullptr;
+  auto* r = start_call<v1::ExportSceneRequest, v1::ExportSceneResponse>(
+      this, "ExportScene", ctx, Role::Admin, in, out, &reactor);
+  if (!r) return reactor;
+  const std::string id = r->req.scene_id();
+  if (grpc::Status s = check_scene_id(id); !s.ok()) {
+    finish_unary(r, "ExportScene", s);
+    return reactor;
+  }
+  // Reading the files takes a while for a large scene: on the build thread.
+  builds_.submit(ctx->peer(), [this, r, id](Scratch&) {
+    grpc::Status g;
+    try {
+      std::shared_ptr<SceneEntry> e = find(id);
+      bool kept = false;
+      if (!e) {
+        std::lock_guard<std::mutex> lock(misplaced_mu_);
+        kept = misplaced_.count(id) > 0;
+      }
+      StoredScene stored;
+      if (!e && !kept) {
+        g = missing(id);
+      } else if (Status s = store_.read(id, &stored); !s) {
+        g = grpc::Status(grpc::StatusCode::INTERNAL, "cannot read the scene's files: " + s.str());
+      } else {
+        v1::ExportSceneResponse* resp = &r->resp;
+        resp->set_scene_id(id);
+        resp->set_scene_json(std::move(stored.json));
+        // A served scene's positions are the engine's, newer than the last
+        // save; a kept one's are its file's. None when they never moved.
+        std::vector<Move> moves;
+        double t = 0.0;
+        bool have = false;
+        if (e && e->dynamic_objects > 0 && (stored.t || e->moves_applied.load() > 0)) {
+          moves = e->scene->dynamic_centers(&t);
+          have = true;
+        } else if (!e && stored.t) {
+          moves = std::move(stored.positions);
+          t = *stored.t;
+          have = true;
+        }
+        if (have) {
+          v1::ScenePositions* p = resp->mutable_positions();
+          p->set_t(t);
+          for (const Move& m : moves) {
+            v1::Move* w = p->add_moves();
+            w->set_id(m.id);
+            vec_to_proto(m.center, w->mutable_center());
+            if (m.has_rotation) {
+              v1::Quat* q = w->mutable_rotation();
+              q->set_w(m.rotation.w);
+              q->set_x(m.rotation.x);
+              q->set_y(m.rotation.y);
+              q->set_z(m.rotation.z);
+            }
+          }
+        }
+        const std::uint64_t bytes = resp->ByteSizeLong();
+        if (bytes > config_.max_message_bytes) {
+          resp->Clear();
+          g = grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                           "scene '" + id + "' exports as " + std::to_string(bytes >> 20) +
+                               " MiB, over --max-message-mib (" + std::to_string(config_.max_message_bytes >> 20) +
+                               " MiB): copy " + stored.json_path +
+                               " (and its .positions file) into the owner's data directory instead, with "
+                               "both servers stopped (docs/deploy.md)");
+        }
+      }
+    } catch (const std::exception& x) {
+      log_("internal error exporting scene '" + id + "': " + x.what());
+      g = grpc::Status(grpc::StatusCode::INTERNAL, std::string("internal error exporting the scene: ") + x.what());
+    }
+    finish_unary(r, "ExportScene", g);
+  });
   return reactor;
 }
 

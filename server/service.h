@@ -14,6 +14,7 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -30,6 +31,7 @@
 #include "pool.h"
 #include "scene_entry.h"
 #include "scene_registry.h"
+#include "shard.h"
 #include "store.h"
 #include "verifier.h"
 #include "voxvis/scene.h"
@@ -53,6 +55,11 @@ struct ServiceConfig {
   /// without instancing that fits a message, while a restart, which reads
   /// the file back, needs several times its size.
   std::uint64_t max_saved_scene_bytes = std::uint64_t{256} << 20;
+  /// Largest message sent (--max-message-mib): an ExportScene answer above
+  /// it is refused, naming the files to copy instead.
+  std::uint64_t max_message_bytes = std::uint64_t{64} << 20;
+  /// The server's place in a fleet (--shard, --fleet); none: every scene is its own.
+  ShardIdentity shard;
 };
 
 /// A stream the service can end from outside (shutdown, scene deletion).
@@ -73,7 +80,8 @@ using RawVisibilityService = v1::Visibility::WithRawCallbackMethod_CreateScene<
                 v1::Visibility::WithRawCallbackMethod_View<
                     v1::Visibility::WithRawCallbackMethod_Simulate<
                         v1::Visibility::WithRawCallbackMethod_Tick<
-                            v1::Visibility::WithRawCallbackMethod_GetPvs<v1::Visibility::Service>>>>>>>>;
+                            v1::Visibility::WithRawCallbackMethod_GetPvs<
+                                v1::Visibility::WithRawCallbackMethod_ExportScene<v1::Visibility::Service>>>>>>>>>;
 
 class Service final : public RawVisibilityService {
  public:
@@ -93,6 +101,14 @@ class Service final : public RawVisibilityService {
     return registry_.load(id, json, source, positions, t, persist);
   }
   bool has_scene(const std::string& id) const { return find(id) != nullptr; }
+  /// Records a scene of the data directory that another shard owns: kept on
+  /// disk, not served; listed, exported and deleted (ListScenes, ExportScene,
+  /// DeleteScene) so that `voxvis rebalance` can move it. Call before serving.
+  void add_misplaced(const std::string& id, const std::string& owner);
+  /// The status of a call on a scene this server does not have: the shard
+  /// identity's refusal naming the owner when the id is another shard's,
+  /// else NOT_FOUND.
+  grpc::Status missing(const std::string& id) const;
 
   /// Ends every stream with UNAVAILABLE after its in-flight frame and refuses
   /// new ones. Call before grpc::Server::Shutdown.
@@ -116,6 +132,8 @@ class Service final : public RawVisibilityService {
   grpc::ServerBidiReactor<Raw, Raw>* Tick(grpc::CallbackServerContext* ctx) override;
   grpc::ServerUnaryReactor* GetPvs(grpc::CallbackServerContext* ctx, const Raw* in,
                                    Raw* out) override;
+  grpc::ServerUnaryReactor* ExportScene(grpc::CallbackServerContext* ctx, const Raw* in,
+                                        Raw* out) override;
 
   // For the reactors.
   std::shared_ptr<SceneEntry> find(const std::string& id) const { return registry_.find(id); }
@@ -197,7 +215,7 @@ class Service final : public RawVisibilityService {
 
  private:
   /// The scene, or null after finishing the call (INVALID_ARGUMENT for an
-  /// invalid id, NOT_FOUND).
+  /// invalid id, missing()'s status).
   std::shared_ptr<SceneEntry> find_or_finish(UnaryCall* r, const char* method,
                                              const std::string& id);
   void fill_info(const SceneEntry& e, v1::SceneInfo* out) const;
@@ -207,11 +225,15 @@ class Service final : public RawVisibilityService {
   WorkerPool& builds_;
   const TokenTable& tokens_;
   Metrics& metrics_;
+  SceneStore& store_;
   Log log_;
   Verifier* verifier_ = nullptr;
   const std::string fail_scene_;  // VOXVIS_TEST_FAIL_SCENE; empty: none.
   std::atomic<bool> stopping_{false};  // shutting_down_, readable without the lock.
   SceneRegistry registry_;
+
+  mutable std::mutex misplaced_mu_;
+  std::map<std::string, std::string> misplaced_;  // Guarded by misplaced_mu_: id -> owner.
 
   std::mutex streams_mu_;
   std::unordered_set<Stream*> streams_;  // Guarded by streams_mu_.

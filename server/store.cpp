@@ -477,6 +477,33 @@ std::vector<StoredScene> SceneStore::load_all(
   return result;
 }
 
+Status SceneStore::read(const std::string& id, StoredScene* out) {
+  *out = StoredScene();
+  if (!valid_scene_id(id)) return Status::Error("scene_id", "not a scene id");
+  const std::string scenes = scenes_dir(dir_);
+  const Fd scenes_fd(open_dir(scenes));
+  if (!scenes_fd.ok()) return Status::Error(scenes, "cannot open directory: " + errno_text(errno));
+  std::string error;
+  const std::string json_name = id + ".json";
+  out->id = id;
+  out->json_path = (fs::path(scenes) / json_name).string();
+  if (!read_entry(scenes_fd.get(), json_name, out->json, error)) return Status::Error(out->json_path, error);
+  const std::string positions_name = id + ".positions";
+  struct stat st;
+  if (::fstatat(scenes_fd.get(), positions_name.c_str(), &st, AT_SYMLINK_NOFOLLOW) != 0) {
+    if (errno == ENOENT) return Status::Ok();
+    return Status::Error(positions_name, "cannot stat: " + errno_text(errno));
+  }
+  std::string text;
+  double t = 0.0;
+  if (!read_entry(scenes_fd.get(), positions_name, text, error) ||
+      !(error = parse_positions(text, t, out->positions)).empty()) {
+    return Status::Error((fs::path(scenes) / positions_name).string(), error);
+  }
+  out->t = t;
+  return Status::Ok();
+}
+
 Status SceneStore::quarantine(const std::string& id) {
   if (!valid_scene_id(id)) return Status::Error("id", "invalid scene id");
   const std::string scenes = scenes_dir(dir_);

@@ -63,6 +63,11 @@ class SceneStore {
   /// parses it, and quarantine()s it when it is refused.
   std::vector<StoredScene> load_all(const std::function<void(const std::string&)>& warn);
 
+  /// One stored scene's files (read anew): its scene file, and its
+  /// positions when a positions file exists. Errors name the path: a
+  /// missing or unreadable scene file, a positions file that does not parse.
+  Status read(const std::string& id, StoredScene* out);
+
   /// Moves both files of a scene (those that exist) into quarantine/, under
   /// their names or, when taken, with a ".N" suffix; both directories are
   /// fsynced. Errors name the path.

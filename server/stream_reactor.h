@@ -191,7 +191,7 @@ class StreamReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::Byt
   /// Makes the first message's scene the stream's.
   grpc::Status find_scene_locked(const std::string& id) {
     entry_ = svc_->find(id);
-    return entry_ ? grpc::Status::OK : no_scene(id);
+    return entry_ ? grpc::Status::OK : svc_->missing(id);
   }
 
   /// Writes write_ (one write in flight: the caller checked writing_).

@@ -310,6 +310,17 @@ grpc::Status Client::create_scene(const std::string& scene_id, const std::string
   return stub_->CreateScene(&context, request, info);
 }
 
+grpc::Status Client::create_scene(const std::string& scene_id, const std::string& scene_json,
+                                  const v1::ScenePositions* positions, v1::SceneInfo* info) const {
+  grpc::ClientContext context;
+  prepare(&context, create_timeout);
+  v1::CreateSceneRequest request;
+  request.set_scene_id(scene_id);
+  request.set_scene_json(scene_json);
+  if (positions) *request.mutable_positions() = *positions;
+  return stub_->CreateScene(&context, request, info);
+}
+
 grpc::Status Client::create_scene(const std::string& scene_id, const SceneDesc& scene,
                                   v1::SceneInfo* info) const {
   grpc::ClientContext context;
@@ -340,6 +351,20 @@ grpc::Status Client::list_scenes(std::vector<v1::SceneInfo>* scenes) const {
                    std::make_move_iterator(response.mutable_scenes()->end()));
   }
   return status;
+}
+
+grpc::Status Client::list_scenes(v1::ListScenesResponse* response) const {
+  grpc::ClientContext context;
+  prepare(&context, call_timeout);
+  return stub_->ListScenes(&context, v1::ListScenesRequest{}, response);
+}
+
+grpc::Status Client::export_scene(const std::string& scene_id, v1::ExportSceneResponse* response) const {
+  grpc::ClientContext context;
+  prepare(&context, create_timeout);
+  v1::ExportSceneRequest request;
+  request.set_scene_id(scene_id);
+  return stub_->ExportScene(&context, request, response);
 }
 
 grpc::Status Client::get_scene_stats(const std::string& scene_id, v1::SceneInfo* info) const {

@@ -119,9 +119,17 @@ class Client {
   /// CreateScene from a description.
   grpc::Status create_scene(const std::string& scene_id, const SceneDesc& scene,
                             v1::SceneInfo* info) const;
+  /// CreateScene from a voxvis-scene/1 document, starting from `positions`
+  /// (another server's ExportScene answer; none when null).
+  grpc::Status create_scene(const std::string& scene_id, const std::string& scene_json,
+                            const v1::ScenePositions* positions, v1::SceneInfo* info) const;
   grpc::Status delete_scene(const std::string& scene_id) const;
   /// Ascending scene ids.
   grpc::Status list_scenes(std::vector<v1::SceneInfo>* scenes) const;
+  /// The whole answer: the scenes served, and those kept for another shard.
+  grpc::Status list_scenes(v1::ListScenesResponse* response) const;
+  /// A scene's file and positions, to move it (ExportScene; admin).
+  grpc::Status export_scene(const std::string& scene_id, v1::ExportSceneResponse* response) const;
   grpc::Status get_scene_stats(const std::string& scene_id, v1::SceneInfo* info) const;
   /// One PVS for a fresh viewer at time `t` (seconds). `result->wake` stays
   /// empty (GetPvs has none); `*t_used` (may be null) receives the scene time

@@ -1,0 +1,126 @@
+// fleet_cmd.cpp — a fleet of servers (--servers): routing a scene to its
+// owner, and `voxvis rebalance`, which moves every scene to its owner after
+// the fleet changed (docs/deploy.md, "Scenes over many servers").
+#include <cstdio>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "cli.h"
+#include "common.h"
+#include "voxvis/client.h"
+#include "voxvis/routing.h"
+
+namespace voxvis::cli {
+
+bool fleet_of(const NetArgs& net, std::vector<routing::Shard>* shards, int* exit_code) {
+  shards->clear();
+  if (net.servers.empty()) {
+    shards->push_back({net.server, net.server});
+    return true;
+  }
+  std::string message;
+  if (!routing::parse_servers(net.servers, shards, &message)) {
+    *exit_code = report(FormatError{"", 0, "--servers", message});
+    return false;
+  }
+  return true;
+}
+
+bool route_scene(NetArgs* net, const std::string& scene_id, int* exit_code) {
+  if (net->servers.empty()) return true;
+  std::vector<routing::Shard> shards;
+  if (!fleet_of(*net, &shards, exit_code)) return false;
+  net->server = shards[routing::owner(shards, scene_id)].address;
+  return true;
+}
+
+namespace {
+
+struct Found {
+  std::size_t shard;  // Where the scene is.
+  bool kept;          // Kept for another shard rather than served.
+};
+
+}  // namespace
+
+int run_rebalance(const RebalanceArgs& args) {
+  std::vector<routing::Shard> shards;
+  int code = kExitOk;
+  if (!fleet_of(args.net, &shards, &code)) return code;
+  std::vector<std::unique_ptr<client::Client>> clients;
+  for (const routing::Shard& shard : shards) {
+    NetArgs one = args.net;
+    one.server = shard.address;
+    clients.push_back(open_client(one, &code));
+    if (clients.back() == nullptr) return code;
+  }
+
+  // Where every scene is now. A server that cannot be listed stops the
+  // rebalance: a scene it holds could otherwise be created a second time.
+  std::map<std::string, std::vector<Found>> where;
+  for (std::size_t i = 0; i < shards.size(); ++i) {
+    v1::ListScenesResponse list;
+    if (const grpc::Status st = clients[i]->list_scenes(&list); !st.ok()) {
+      report_status(st, shards[i].address, "");
+      std::fprintf(stderr, "voxvis: error: nothing moved: every server must answer\n");
+      return kExitError;
+    }
+    for (const v1::SceneInfo& s : list.scenes()) where[s.scene_id()].push_back({i, false});
+    for (const v1::MisplacedScene& m : list.misplaced()) where[m.scene_id()].push_back({i, true});
+  }
+
+  std::size_t moved = 0, failed = 0, in_place = 0;
+  for (const auto& [id, found] : where) {
+    const std::size_t owner = routing::owner(shards, id);
+    if (found.size() > 1) {
+      std::string on;
+      for (const Found& f : found) on += (on.empty() ? "" : ", ") + shards[f.shard].name;
+      std::fprintf(stderr, "voxvis: error: scene '%s' is on %zu servers (%s); left alone: delete the stale "
+                   "copies, then run rebalance again\n", id.c_str(), found.size(), on.c_str());
+      ++failed;
+      continue;
+    }
+    const std::size_t from = found[0].shard;
+    if (from == owner) {
+      ++in_place;
+      continue;
+    }
+    std::printf("%s: %s -> %s%s\n", id.c_str(), shards[from].name.c_str(), shards[owner].name.c_str(),
+                args.dry_run ? " (dry run)" : "");
+    std::fflush(stdout);
+    if (args.dry_run) {
+      ++moved;
+      continue;
+    }
+    v1::ExportSceneResponse exported;
+    if (const grpc::Status st = clients[from]->export_scene(id, &exported); !st.ok()) {
+      report_status(st, shards[from].address, "export of scene '" + id + "'");
+      ++failed;
+      continue;
+    }
+    v1::SceneInfo info;
+    const grpc::Status created = clients[owner]->create_scene(
+        id, exported.scene_json(), exported.has_positions() ? &exported.positions() : nullptr, &info);
+    if (!created.ok()) {
+      // Left where it was: nothing is lost.
+      report_status(created, shards[owner].address, "creating scene '" + id + "' on its owner");
+      ++failed;
+      continue;
+    }
+    if (const grpc::Status st = clients[from]->delete_scene(id); !st.ok()) {
+      // Served by its owner now; the old copy is stale and is reported on
+      // the next run as a scene on two servers.
+      report_status(st, shards[from].address, "deleting the old copy of scene '" + id + "'");
+      ++failed;
+      continue;
+    }
+    ++moved;
+  }
+  std::fprintf(stderr, "voxvis: %zu scenes: %zu %s, %zu already on their owner, %zu failed\n", where.size(),
+               moved, args.dry_run ? "to move" : "moved", in_place, failed);
+  return failed == 0 ? kExitOk : kExitError;
+}
+
+}  // namespace voxvis::cli
