@@ -92,7 +92,8 @@ bool parse_servers(std::string_view list, std::vector<Shard>* shards, std::strin
     }
     Shard shard;
     std::string_view address = entry;
-    if (const std::size_t eq = entry.find('='); eq != std::string_view::npos) {
+    const std::size_t eq = entry.find('=');
+    if (eq != std::string_view::npos) {
       shard.name = std::string(trim(entry.substr(0, eq)));
       address = trim(entry.substr(eq + 1));
     }
@@ -107,7 +108,7 @@ bool parse_servers(std::string_view list, std::vector<Shard>* shards, std::strin
       return false;
     }
     shard.address = std::string(address);
-    if (shard.name.empty()) {
+    if (eq == std::string_view::npos) {
       shard.name = ip_literal(host) || host == "localhost" ? shard.address
                                                             : std::string(host.substr(0, host.find('.')));
     }

@@ -216,6 +216,35 @@ TEST(ServerHealth, ShutdownEndsOpenWatchStreams) {
   }
 }
 
+TEST(ServerHealth, HealthCommandSaysWhetherTheServerServes) {
+  // `voxvis health`: the container health check and the operator's probe.
+  ServerProcess server;
+  ASSERT_TRUE(server.start());
+  ProcessResult r = run_program({VOXVIS_CLI, "health", "--server", server.address()}, server.dir());
+  EXPECT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(r.out, "SERVING\n");
+  r = run_program({VOXVIS_CLI, "health", "--server", server.address(), "--service", "voxvis.v1.Visibility"},
+                  server.dir());
+  EXPECT_EQ(r.status, 0) << r.err;
+  r = run_program({VOXVIS_CLI, "health", "--server", server.address(), "--service", "no.such.Service"},
+                  server.dir());
+  EXPECT_EQ(r.status, 4);
+  EXPECT_NE(r.err.find("service 'no.such.Service' at " + server.address() + ": unknown"), std::string::npos)
+      << r.err;
+  r = run_program({VOXVIS_CLI, "health", "--server", server.address(), "--timeout", "0"}, server.dir());
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("--timeout"), std::string::npos) << r.err;
+
+  // Stopped: no answer within the timeout, exit 4 (not a hang).
+  const std::string address = server.address();
+  EXPECT_EQ(server.terminate(), 0);
+  const auto start = std::chrono::steady_clock::now();
+  r = run_program({VOXVIS_CLI, "health", "--server", address, "--timeout", "1"}, server.dir(), Seconds(20));
+  EXPECT_EQ(r.status, 4) << r.err;
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(15));
+  EXPECT_NE(r.err.find("no health answer from " + address + " within 1 s"), std::string::npos) << r.err;
+}
+
 TEST(ServerReflection, OffByDefault) {
   {
     ServerProcess server;
