@@ -118,6 +118,9 @@ bool route_scene(NetArgs* net, const std::string& scene_id, int* exit_code);
 
 struct RebalanceArgs {
   NetArgs net;           ///< servers: the fleet as it is now.
+  /// Servers leaving the fleet, "[NAME=]HOST:PORT,...": every scene they
+  /// hold moves to its owner in `net.servers`.
+  std::string drain;
   bool dry_run = false;  ///< Print the moves only.
 };
 

@@ -49,6 +49,22 @@ int run_rebalance(const RebalanceArgs& args) {
   std::vector<routing::Shard> shards;
   int code = kExitOk;
   if (!fleet_of(args.net, &shards, &code)) return code;
+  // Owners are the fleet's shards; servers being drained follow them, as
+  // sources only.
+  const std::size_t owners = shards.size();
+  if (!args.drain.empty()) {
+    std::vector<routing::Shard> leaving;
+    std::string message;
+    if (!routing::parse_servers(args.drain, &leaving, &message)) return report(FormatError{"", 0, "--drain", message});
+    for (const routing::Shard& l : leaving) {
+      for (const routing::Shard& s : shards) {
+        if (s.name == l.name || s.address == l.address)
+          return report(FormatError{"", 0, "--drain", "'" + l.name + "' (" + l.address + ") is also in --servers"});
+      }
+      shards.push_back(l);
+    }
+  }
+  const std::vector<routing::Shard> fleet(shards.begin(), shards.begin() + static_cast<std::ptrdiff_t>(owners));
   std::vector<std::unique_ptr<client::Client>> clients;
   for (const routing::Shard& shard : shards) {
     NetArgs one = args.net;
@@ -73,7 +89,7 @@ int run_rebalance(const RebalanceArgs& args) {
 
   std::size_t moved = 0, failed = 0, in_place = 0;
   for (const auto& [id, found] : where) {
-    const std::size_t owner = routing::owner(shards, id);
+    const std::size_t owner = routing::owner(fleet, id);
     if (found.size() > 1) {
       std::string on;
       for (const Found& f : found) on += (on.empty() ? "" : ", ") + shards[f.shard].name;

@@ -367,6 +367,10 @@ int run(int argc, char** argv) {
       "rebalance", "Move every scene of a fleet to the server that owns it (after the fleet changed).");
   add_net_options(rebalance_cmd, &rebalance.net);
   rebalance_cmd->get_option("--servers")->required();
+  rebalance_cmd->add_option("--drain", rebalance.drain,
+                            "Servers leaving the fleet (not in --servers): every scene they hold moves "
+                            "to its owner among --servers")
+      ->type_name("[NAME=]HOST:PORT,...");
   rebalance_cmd->add_flag("--dry-run", rebalance.dry_run, "Print the moves without making them");
   rebalance_cmd->footer(
       "Lists every server's scenes (those served, and those a server keeps for another\n"

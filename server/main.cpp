@@ -120,8 +120,9 @@ int run(int argc, char** argv) {
                  "shard (docs/deploy.md)")
       ->type_name("NAME");
   app.add_option("--fleet", config.fleet,
-                 "Every shard's name, comma-separated, this server's included: the names clients "
-                 "route over (voxvis --servers)")
+                 "Every shard's name, comma-separated: the names clients route over (voxvis "
+                 "--servers). A --shard not among them is leaving the fleet (draining): it serves "
+                 "no scene and keeps its data directory's for voxvis rebalance --drain")
       ->delimiter(',')
       ->type_name("NAME,...");
   app.add_option("--port-file", config.port_file,

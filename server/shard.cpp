@@ -34,10 +34,7 @@ bool ShardIdentity::make(const std::string& self, const std::vector<std::string>
     *error = "--fleet: more than 4096 shards";
     return false;
   }
-  if (!seen.count(self)) {
-    *error = "--shard '" + self + "' is not in --fleet (" + std::to_string(fleet.size()) + " names)";
-    return false;
-  }
+  out->draining_ = !seen.count(self);
   out->self_ = self;
   out->fleet_ = fleet;
   return true;
@@ -52,7 +49,8 @@ std::string ShardIdentity::other_owner(std::string_view scene_id) const {
 grpc::Status ShardIdentity::refusal(const std::string& scene_id, const std::string& owner) const {
   return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
                       "scene_id: scene '" + scene_id + "' belongs to shard '" + owner + "', not to this server ('" +
-                          self_ + "' of a fleet of " + std::to_string(fleet_.size()) +
+                          self_ + (draining_ ? "', draining, not in" : "' of") + " a fleet of " +
+                          std::to_string(fleet_.size()) +
                           "); send it there: clients route by rendezvous hashing over the fleet's names "
                           "(voxvis --servers, docs/deploy.md)");
 }
@@ -60,6 +58,9 @@ grpc::Status ShardIdentity::refusal(const std::string& scene_id, const std::stri
 std::string ShardIdentity::describe() const {
   std::string names;
   for (const std::string& n : fleet_) names += (names.empty() ? "" : ",") + n;
+  if (draining_)
+    return "shard '" + self_ + "', draining: not in the fleet of " + std::to_string(fleet_.size()) + " (" + names +
+           "), it serves no scene and keeps its data directory's for `voxvis rebalance --drain`";
   return "shard '" + self_ + "' of " + std::to_string(fleet_.size()) + " (" + names + ")";
 }
 

@@ -19,13 +19,16 @@ class ShardIdentity {
  public:
   /// No identity: every scene is this server's.
   ShardIdentity() = default;
-  /// This server is shard `self` of `fleet` (every shard's name, each once,
-  /// `self` among them). On error returns false and sets `error`, naming the
+  /// This server is shard `self` of `fleet` (every shard's name, each once).
+  /// A `self` not in `fleet` is a shard leaving the fleet (draining): every
+  /// scene is another's. On error returns false and sets `error`, naming the
   /// option.
   static bool make(const std::string& self, const std::vector<std::string>& fleet, ShardIdentity* out,
                    std::string* error);
 
   bool enabled() const { return !self_.empty(); }
+  /// Not in the fleet: serves nothing, keeps its scenes for `voxvis rebalance --drain`.
+  bool draining() const { return draining_; }
   const std::string& self() const { return self_; }
   /// The name of the shard that owns `scene_id` when it is not this server;
   /// empty when it is this server's (always, without an identity).
@@ -38,6 +41,7 @@ class ShardIdentity {
  private:
   std::string self_;
   std::vector<std::string> fleet_;
+  bool draining_ = false;
 };
 
 }  // namespace voxvis::server
