@@ -13,6 +13,7 @@
 #include <gtest/gtest.h>
 
 #include "server_process.h"
+#include "voxvis/fleet.h"
 #include "voxvis/routing.h"
 
 namespace voxvis::servertest {
@@ -71,12 +72,19 @@ TEST(ServerShards, HundredScenesEachOnExactlyItsOwner) {
   Fleet fleet;
   fleet.set_fleet({"a", "b", "c"});
   for (auto& s : fleet.servers) ASSERT_TRUE(s->start());
+  // Created through the client library's fleet: it picks each scene's server.
+  std::string error;
+  const std::unique_ptr<client::Fleet> routed = client::Fleet::connect(fleet.servers_arg(), {}, &error);
+  ASSERT_NE(routed, nullptr) << error;
+  ASSERT_EQ(routed->shards().size(), 3u);
   const std::string json = wall_scene_json();
   std::vector<std::string> ids;
   for (int i = 0; i < 100; ++i) {
     ids.push_back(scene_id(i));
-    const std::size_t owner = fleet.owner(ids.back());
-    ASSERT_TRUE(fleet.servers[owner]->api().create_scene_json(ids.back(), json).ok()) << ids.back();
+    EXPECT_EQ(routed->owner(ids.back()), fleet.owner(ids.back()));
+    v1::SceneInfo info;
+    const grpc::Status st = routed->for_scene(ids.back()).create_scene(ids.back(), json, &info);
+    ASSERT_TRUE(st.ok()) << ids.back() << ": " << show(st);
   }
   expect_each_on_its_owner(fleet, ids);
   // Rendezvous hashing spreads them: each of three shards gets some (the
