@@ -7,6 +7,7 @@
 #include <condition_variable>
 #include <fstream>
 #include <mutex>
+#include <optional>
 #include <sstream>
 #include <thread>
 
@@ -18,6 +19,7 @@
 #include <grpcpp/resource_quota.h>
 
 #include "auth.h"
+#include "cgroup_limits.h"
 #include "health.h"
 #include "metrics.h"
 #include "verifier.h"
@@ -124,12 +126,19 @@ class ServerImpl final : public Server {
     if (grpc_memory < std::uint64_t(config_.max_message_bytes) + (16ull << 20))
       return fail(error, "--grpc-memory-mib must exceed --max-message-mib by at least 16 MiB "
                          "(a message of the largest size must fit)");
+    // Defaults from the machine, or the container's limits when lower
+    // (cgroup_limits.h).
     unsigned workers = config_.workers ? config_.workers : std::thread::hardware_concurrency();
     if (workers == 0) workers = 2;
+    if (config_.workers == 0) {
+      if (std::optional<unsigned> cpus = cgroup_cpu_limit(); cpus && *cpus < workers) workers = *cpus;
+    }
     std::uint64_t budget = config_.memory_budget_bytes;
     if (budget == 0) {
       const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
-      budget = pages > 0 && page > 0 ? std::uint64_t(pages) * std::uint64_t(page) / 2 : (4ull << 30);
+      std::uint64_t memory = pages > 0 && page > 0 ? std::uint64_t(pages) * std::uint64_t(page) : (8ull << 30);
+      if (std::optional<std::uint64_t> limit = cgroup_memory_limit(); limit && *limit < memory) memory = *limit;
+      budget = memory / 2;
     }
 
     if (!config_.tokens_file.empty()) {
