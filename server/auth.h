@@ -2,7 +2,7 @@
 //
 // Roles nest: a viewer may view (View, Tick without moves, GetPvs,
 // ListScenes, GetSceneStats), a simulation may also move objects (Simulate,
-// Tick with moves), an admin may also create and delete scenes. Tokens come
+// Tick with moves), an admin may also create, delete and export scenes. Tokens come
 // from a file (never the command line, where any user of the machine could
 // read them in the process list):
 //

@@ -241,6 +241,14 @@ grpc::Status Api::stats(const std::string& id, v1::SceneInfo* info) const {
   return stub_->GetSceneStats(&ctx, req, info);
 }
 
+grpc::Status Api::export_scene(const std::string& id, v1::ExportSceneResponse* out) const {
+  grpc::ClientContext ctx;
+  prepare(&ctx);
+  v1::ExportSceneRequest req;
+  req.set_scene_id(id);
+  return stub_->ExportScene(&ctx, req, out);
+}
+
 grpc::Status Api::get_pvs(const std::string& id, double t, const Camera& camera,
                           v1::GetPvsResponse* out) const {
   grpc::ClientContext ctx;

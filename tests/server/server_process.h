@@ -132,6 +132,7 @@ class Api {
   /// Scene ids in the order the server lists them.
   grpc::Status list_scenes(std::vector<std::string>* ids) const;
   grpc::Status stats(const std::string& id, v1::SceneInfo* info) const;
+  grpc::Status export_scene(const std::string& id, v1::ExportSceneResponse* out) const;
   grpc::Status get_pvs(const std::string& id, double t, const Camera& camera,
                        v1::GetPvsResponse* out) const;
 

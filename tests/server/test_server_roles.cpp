@@ -94,6 +94,8 @@ TEST(ServerRoles, TokensAndRoles) {
     EXPECT_EQ(api->get_pvs("s", 0, wall_camera(), &pvs).error_code(), unauth);
     EXPECT_EQ(api->create_scene_json("x", wall_scene_json()).error_code(), unauth);
     EXPECT_EQ(api->delete_scene("s").error_code(), unauth);
+    v1::ExportSceneResponse exported;
+    EXPECT_EQ(api->export_scene("s", &exported).error_code(), unauth);
     EXPECT_EQ(view_status(*api, "s").error_code(), unauth);
     bool acked = true;
     EXPECT_EQ(simulate_status(*api, "s", &acked).error_code(), unauth);
@@ -118,6 +120,8 @@ TEST(ServerRoles, TokensAndRoles) {
     const auto denied = grpc::StatusCode::PERMISSION_DENIED;
     EXPECT_EQ(viewer.create_scene_json("x", wall_scene_json()).error_code(), denied);
     EXPECT_EQ(viewer.delete_scene("s").error_code(), denied);
+    v1::ExportSceneResponse exported;
+    EXPECT_EQ(viewer.export_scene("s", &exported).error_code(), denied);
     bool acked = true;
     EXPECT_EQ(simulate_status(viewer, "s", &acked).error_code(), denied);
     EXPECT_FALSE(acked);
@@ -150,6 +154,8 @@ TEST(ServerRoles, TokensAndRoles) {
     ASSERT_TRUE(simulation.list_scenes(&ids).ok());
     const auto denied = grpc::StatusCode::PERMISSION_DENIED;
     EXPECT_EQ(simulation.delete_scene("s").error_code(), denied);
+    v1::ExportSceneResponse exported;
+    EXPECT_EQ(simulation.export_scene("s", &exported).error_code(), denied);
     EXPECT_EQ(simulation.create_scene_json("x", wall_scene_json()).error_code(), denied);
     ASSERT_TRUE(admin.list_scenes(&ids).ok());
     EXPECT_EQ(ids, just_s);
@@ -158,6 +164,9 @@ TEST(ServerRoles, TokensAndRoles) {
   {
     SCOPED_TRACE("admin");
     ASSERT_TRUE(admin.create_scene_json("t", wall_scene_json()).ok());
+    v1::ExportSceneResponse exported;
+    ASSERT_TRUE(admin.export_scene("t", &exported).ok());
+    EXPECT_EQ(exported.scene_json(), wall_scene_json());
     ASSERT_TRUE(admin.list_scenes(&ids).ok());
     EXPECT_EQ(ids, (std::vector<std::string>{"s", "t"}));
     bool acked = false;

@@ -196,12 +196,7 @@ TEST(ServerShards, RebalanceMovesScenesToTheirOwnersWithTheirPositions) {
   }
   std::map<std::string, v1::ExportSceneResponse> exported;
   for (const std::string& id : to_d) {
-    grpc::ClientContext ctx;
-    const Api api = fleet.servers[fleet.owner(id)]->api();
-    api.prepare(&ctx);
-    v1::ExportSceneRequest req;
-    req.set_scene_id(id);
-    ASSERT_TRUE(api.stub().ExportScene(&ctx, req, &exported[id]).ok());
+    ASSERT_TRUE(fleet.servers[fleet.owner(id)]->api().export_scene(id, &exported[id]).ok());
     ASSERT_TRUE(exported[id].has_positions()) << id;
   }
 
@@ -232,13 +227,9 @@ TEST(ServerShards, RebalanceMovesScenesToTheirOwnersWithTheirPositions) {
   // Each moved scene has its positions and clock: exported again from d,
   // the same bytes; its frame sees the sphere where the simulation left it.
   for (const std::string& id : to_d) {
-    grpc::ClientContext ctx;
     const Api api = fleet.servers[3]->api();
-    api.prepare(&ctx);
-    v1::ExportSceneRequest req;
-    req.set_scene_id(id);
     v1::ExportSceneResponse again;
-    ASSERT_TRUE(api.stub().ExportScene(&ctx, req, &again).ok());
+    ASSERT_TRUE(api.export_scene(id, &again).ok());
     EXPECT_EQ(again.SerializeAsString(), exported[id].SerializeAsString()) << id;
     v1::SceneInfo info;
     ASSERT_TRUE(api.stats(id, &info).ok());
@@ -362,12 +353,8 @@ TEST(ServerShards, CreateWithPositionsChecksEveryEntry) {
   *p.add_moves() = move(2, 13.25);
   ASSERT_TRUE(create("placed", p).ok());
   const auto exported = [&] {
-    grpc::ClientContext ctx;
-    api.prepare(&ctx);
-    v1::ExportSceneRequest req;
-    req.set_scene_id("placed");
     v1::ExportSceneResponse out;
-    EXPECT_TRUE(server.api().stub().ExportScene(&ctx, req, &out).ok());
+    EXPECT_TRUE(server.api().export_scene("placed", &out).ok());
     return out;
   };
   v1::ExportSceneResponse out = exported();
@@ -392,12 +379,8 @@ TEST(ServerShards, ExportTooLargeForAMessageNamesTheFile) {
   EXPECT_EQ(server.terminate(), 0);
   server.extra_args() = {"--max-message-mib", "0.01"};
   ASSERT_TRUE(server.restart());
-  grpc::ClientContext ctx;
-  server.api().prepare(&ctx);
-  v1::ExportSceneRequest req;
-  req.set_scene_id("big");
   v1::ExportSceneResponse out;
-  const grpc::Status st = server.api().stub().ExportScene(&ctx, req, &out);
+  const grpc::Status st = server.api().export_scene("big", &out);
   EXPECT_EQ(st.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << show(st);
   EXPECT_NE(st.error_message().find("scenes/big.json"), std::string::npos) << st.error_message();
 }
