@@ -2,36 +2,53 @@
 # Installs the Debian 12 packages voxvis builds with, when any is missing.
 # Every dependency comes from Debian's archive; nothing is downloaded otherwise.
 
-VOXVIS_PACKAGES=(
+# What building voxvis-server and voxvis needs (the container image's build
+# stage installs these alone: deploy/Containerfile).
+VOXVIS_BUILD_PACKAGES=(
   build-essential cmake ninja-build pkg-config
   libglm-dev nlohmann-json3-dev libcli11-dev
-  libgtest-dev libgmock-dev libbenchmark-dev
-  clang libclang-rt-14-dev llvm
   libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc grpc-proto prometheus-cpp-dev
   libcurl4-openssl-dev libssl-dev
-  openssl
   libegl-dev libopengl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri
-  gnuplot-nox
-  python3-grpcio python3-protobuf
   libopenvdb-dev libboost-iostreams-dev
   libassimp-dev
 )
 
+# The rest of a development machine's: the test suite and benchmarks, the
+# fuzz targets (clang), the TLS test's certificates, `voxvis report`'s plot,
+# the Python example's client.
+VOXVIS_DEV_PACKAGES=(
+  libgtest-dev libgmock-dev libbenchmark-dev
+  clang libclang-rt-14-dev llvm
+  openssl
+  gnuplot-nox
+  python3-grpcio python3-protobuf
+)
+
+VOXVIS_PACKAGES=("${VOXVIS_BUILD_PACKAGES[@]}" "${VOXVIS_DEV_PACKAGES[@]}")
+
 # Only the test suite uses these (tests/run.sh installs them; the tests that
 # need one skip with a message when it is missing): real model files for the
 # importer's tests (glTF 2.0 samples, OBJ, the FZK house as IFC) in
-# /usr/share/assimp/models.
+# /usr/share/assimp/models; podman, runc and debootstrap for the container
+# image's test (tests/deploy/container_test.sh; runc because podman's default
+# runtime, crun, fails on hosts with hybrid cgroups); PyYAML for the
+# Kubernetes manifests' check (tests/deploy/check_manifests.py).
 VOXVIS_TEST_PACKAGES=(
   assimp-testmodels
+  podman runc debootstrap
+  python3-yaml
 )
 
-# voxvis_ensure_deps [tests]: the build's packages, and with `tests` the test
-# suite's as well.
+# voxvis_ensure_deps [tests|build]: a development machine's packages; with
+# `tests` the test suite's as well; with `build` only what building the two
+# binaries needs (the container image).
 voxvis_ensure_deps() {
   local missing=()
   local p
   local wanted=("${VOXVIS_PACKAGES[@]}")
   if [ "${1:-}" = tests ]; then wanted+=("${VOXVIS_TEST_PACKAGES[@]}"); fi
+  if [ "${1:-}" = build ]; then wanted=("${VOXVIS_BUILD_PACKAGES[@]}"); fi
   for p in "${wanted[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
   done
