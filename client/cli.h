@@ -8,6 +8,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "voxvis/format.h"
 #include "voxvis/scene.h"
@@ -87,6 +88,17 @@ int run_report(const ReportArgs& args);
 inline constexpr int kExitMissed = 3;
 
 int run_verify(const VerifyArgs& args);
+
+struct VerifyMergeArgs {
+  std::vector<std::string> slices;  ///< `verify` outputs of slices, any order.
+  std::string out;                  ///< The joined output; empty: stdout.
+  std::int64_t frames = -1;         ///< Frames the slices must cover exactly (0..N-1); -1: unchecked.
+};
+
+/// `voxvis verify-merge`: slices joined in frame order, checked to follow
+/// one another without gap or overlap, summarised; kExitMissed when any
+/// frame has a miss.
+int run_verify_merge(const VerifyMergeArgs& args);
 
 struct GenerateArgs {
   std::string preset = "paper";  ///< paper | indoor | voxel-world | voxel-cave | city.

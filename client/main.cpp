@@ -164,6 +164,21 @@ int run(int argc, char** argv) {
       "Output: one line per frame, {\"frame\", \"visible\", \"missed\", \"pvs_size\", \"stats\"}.\n"
       "Exit status 3 when any visible object was missing from a PVS (docs/verify.md).");
 
+  // voxvis verify-merge
+  voxvis::cli::VerifyMergeArgs merge;
+  CLI::App* merge_cmd = app.add_subcommand(
+      "verify-merge", "Join the slices of a verification split over workers, check them, summarise.");
+  merge_cmd->add_option("slices", merge.slices, "`voxvis verify --out` files of the slices, any order")
+      ->required()
+      ->type_name("SLICE");
+  merge_cmd->add_option("--out", merge.out, "The joined output (JSON Lines); default stdout")->type_name("FILE");
+  merge_cmd->add_option("--frames", merge.frames, "Frames the slices must cover, 0 to N-1 (a lost slice is an error)")
+      ->type_name("N");
+  merge_cmd->footer(
+      "The slices are sorted by their first frame; a gap or an overlap is an error naming\n"
+      "the file. The summary (stderr) counts as `verify`'s: missed object-frames, edge-only\n"
+      "sightings dismissed, visible, PVS, tightness. Exit 3 when a frame has a miss.");
+
   // voxvis export
   voxvis::cli::ExportArgs exp;
   double export_tbv = -1.0;
@@ -543,6 +558,7 @@ int run(int argc, char** argv) {
     exp.frame_given = export_frame_opt->count() > 0;
     return voxvis::cli::run_export(exp);
   }
+  if (merge_cmd->parsed()) return voxvis::cli::run_verify_merge(merge);
   if (report_cmd->parsed()) return voxvis::cli::run_report(rep);
   if (gen_cmd->parsed()) return voxvis::cli::run_generate(gen);
   if (import_cmd->parsed()) return voxvis::cli::run_import(imp);
