@@ -369,7 +369,15 @@ grpc::ServerUnaryReactor* Service::ExportScene(grpc::CallbackServerContext* ctx,
       if (!e && !kept) {
         g = missing(id);
       } else if (Status s = store_.read(id, &stored); !s) {
-        g = grpc::Status(grpc::StatusCode::INTERNAL, "cannot read the scene's files: " + s.str());
+        // Deleted meanwhile, or its files are unreadable.
+        bool still_kept = false;
+        {
+          std::lock_guard<std::mutex> lock(misplaced_mu_);
+          still_kept = misplaced_.count(id) > 0;
+        }
+        g = (e ? e->deleted.load() : !still_kept)
+                ? missing(id)
+                : grpc::Status(grpc::StatusCode::INTERNAL, "cannot read the scene's files: " + s.str());
       } else {
         v1::ExportSceneResponse* resp = &r->resp;
         resp->set_scene_id(id);
