@@ -19,8 +19,9 @@ ctest --test-dir build --output-on-failure -j "$jobs"
 
 # The container image built and served, and the Kubernetes manifests podman
 # plays (tests/deploy/container_test.sh; it says SKIPPED, with the reason,
-# where podman cannot run). About 7 minutes on a fresh 2-core machine, most
-# of it compiling voxvis inside the image's build stage.
+# where podman cannot run). About 9 minutes on a fresh 2-core machine, most
+# of it the image's build stage (its packages, then compiling voxvis): the
+# image CI tests is the one deploy/image.sh ships.
 echo "== Container image and manifests" >&2
 bash tests/deploy/container_test.sh
 

@@ -17,7 +17,11 @@ set -euo pipefail
 cd "$(dirname "$0")/../.."
 root=$(pwd)
 cli="$root/build/voxvis"
-image="localhost/voxvis:latest"
+# An image name of the test's own: the test never replaces a localhost/voxvis
+# the machine has (it keeps localhost/voxvis-test, whose layers a later run
+# reuses; `podman rmi localhost/voxvis-test` frees its space).
+export VOXVIS_IMAGE=localhost/voxvis-test
+image="$VOXVIS_IMAGE:latest"
 start=$(date +%s)
 say() { echo "container test: $*" >&2; }
 skip() { say "SKIPPED: $*"; exit 0; }
@@ -76,8 +80,10 @@ if ! bash deploy/image.sh >"$work/image.log" 2>&1; then
   tail -30 "$work/image.log" >&2
   fail "deploy/image.sh failed"
 fi
-"${podman[@]}" run --rm "${run_flags[@]}" --network none "$image" --version 2>/dev/null | grep -q '^voxvis-server ' \
-  || fail "the image's entry point is not voxvis-server"
+# (Outputs are read whole before grep: under pipefail, `grep -q` leaving
+# early would fail the pipe with the writer's SIGPIPE.)
+version=$("${podman[@]}" run --rm "${run_flags[@]}" --network none "$image" --version 2>/dev/null || true)
+grep -q '^voxvis-server ' <<<"$version" || fail "the image's entry point is not voxvis-server (got: $version)"
 uid=$("${podman[@]}" run --rm "${run_flags[@]}" --network none --entrypoint id "$image" -u 2>/dev/null)
 [ "$uid" != 0 ] || fail "the image runs as root"
 
@@ -102,8 +108,16 @@ if a != b:
     sys.exit(f"{sys.argv[3]}: line {bad + 1} differs from replay's ({len(b)} lines, replay {len(a)})")
 PY
 }
-wait_serving() {  # ADDRESS SECONDS
-  "$cli" health --server "$1" --timeout "$2" >/dev/null
+wait_serving() {  # ADDRESS SECONDS [CONTAINER]: SERVING within SECONDS; gives up at once if CONTAINER exits
+  local end=$(( $(date +%s) + $2 ))
+  while [ "$(date +%s)" -lt "$end" ]; do
+    "$cli" health --server "$1" --timeout 2 >/dev/null 2>&1 && return 0
+    if [ -n "${3:-}" ] && [ "$("${podman[@]}" inspect -f '{{.State.Running}}' "$3" 2>/dev/null)" != true ]; then
+      say "$3 is not running"
+      return 1
+    fi
+  done
+  return 1
 }
 
 # --- 2. The image serves the walkthrough; SIGTERM stops it gracefully.
@@ -113,7 +127,7 @@ say "serving the walkthrough from the image"
   || { cat "$work/run.err" >&2; fail "podman run failed"; }
 port=$("${podman[@]}" port "$name" 50051/tcp | sed 's/.*://')
 [ -n "$port" ] || fail "no published port"
-wait_serving "127.0.0.1:$port" 60 || { "${podman[@]}" logs "$name" >&2; fail "health not SERVING"; }
+wait_serving "127.0.0.1:$port" 60 "$name" || { "${podman[@]}" logs "$name" >&2; fail "health not SERVING"; }
 [ "$("$cli" health --server "127.0.0.1:$port")" = SERVING ] || fail "health did not print SERVING"
 "${podman[@]}" healthcheck run "$name" >/dev/null 2>&1 || fail "the image's HEALTHCHECK failed while serving"
 "$cli" view --server "127.0.0.1:$port" --scene paper --frames "$frames" --out "$work/view.jsonl" -q \
@@ -126,7 +140,8 @@ elapsed_ms=$(( ($(date +%s%N) - t0) / 1000000 ))
 code=$("${podman[@]}" inspect -f '{{.State.ExitCode}}' "$name")
 [ "$code" = 0 ] || { "${podman[@]}" logs "$name" >&2; fail "exit status $code after SIGTERM (expected 0)"; }
 [ "$elapsed_ms" -lt $((grace * 1000)) ] || fail "the stop took ${elapsed_ms} ms, over the ${grace} s grace"
-"${podman[@]}" logs "$name" 2>&1 | grep -q "received SIGTERM" || fail "the server did not log the SIGTERM"
+log=$("${podman[@]}" logs "$name" 2>&1)
+grep -q "received SIGTERM" <<<"$log" || fail "the server did not log the SIGTERM"
 say "stopped by SIGTERM in ${elapsed_ms} ms, exit 0"
 "${podman[@]}" rm -f "$name" >/dev/null
 
@@ -137,11 +152,12 @@ play() {  # FILE: plays it (kept for cleanup as *.play.yaml)
 down() { "${podman[@]}" kube down "$1" >/dev/null 2>&1 || fail "kube down $1 failed"; }
 
 say "kube play: sidecar.yaml"
-cp deploy/k8s/sidecar.yaml "$work/sidecar.play.yaml"
+sed "s#localhost/voxvis:latest#$image#" deploy/k8s/sidecar.yaml >"$work/sidecar.play.yaml"
 play "$work/sidecar.play.yaml"
 ok=0
 for _ in $(seq 120); do
-  if "${podman[@]}" logs match-1-game-server 2>&1 | grep -q "walkthrough answered"; then ok=1; break; fi
+  log=$("${podman[@]}" logs match-1-game-server 2>&1 || true)
+  if grep -q "walkthrough answered" <<<"$log"; then ok=1; break; fi
   sleep 1
 done
 [ "$ok" = 1 ] || { "${podman[@]}" logs match-1-game-server >&2 || true; "${podman[@]}" logs match-1-voxvis >&2 || true;
@@ -154,9 +170,11 @@ free_port() { python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",
 free=$(free_port); free_metrics=$(free_port)
 # Volumes of the test's own (podman keeps a claim's volume after kube down).
 sed -e "s/hostPort: 50051/hostPort: $free/" -e "s/hostPort: 9090/hostPort: $free_metrics/" \
-  -e "s/voxvis-data/$name-data/" deploy/k8s/server-deployment.yaml >"$work/server.play.yaml"
+  -e "s/voxvis-data/$name-data/" -e "s#localhost/voxvis:latest#$image#" \
+  deploy/k8s/server-deployment.yaml >"$work/server.play.yaml"
 play "$work/server.play.yaml"
-wait_serving "127.0.0.1:$free" 90 || fail "the Deployment's server is not SERVING on port $free"
+wait_serving "127.0.0.1:$free" 90 voxvis-pod-0-voxvis || { "${podman[@]}" logs voxvis-pod-0-voxvis >&2 || true;
+  fail "the Deployment's server is not SERVING on port $free"; }
 "$cli" view --server "127.0.0.1:$free" --scene paper --frames "$frames" --out "$work/deploy-view.jsonl" -q \
   || fail "voxvis view against the Deployment failed"
 same_as_replay "$work/deploy-view.jsonl" "voxvis view (Deployment)" || fail "the Deployment's answers differ from replay's"
@@ -168,7 +186,7 @@ down "$work/server.play.yaml"
 say "kube play: the verify Job's pod (slice 1 of 10 frames)"
 # podman plays Pods, not Jobs: the Job's pod template as a Pod, with what
 # Kubernetes would set (JOB_COMPLETION_INDEX) and a shorter slice.
-python3 - deploy/k8s/verify-job.yaml "$work/verify.play.yaml" "$name-results" <<'PY'
+python3 - deploy/k8s/verify-job.yaml "$work/verify.play.yaml" "$name-results" "$image" <<'PY'
 import sys, yaml
 docs = [d for d in yaml.safe_load_all(open(sys.argv[1])) if d]
 pvc = next(d for d in docs if d["kind"] == "PersistentVolumeClaim")
@@ -179,6 +197,7 @@ for v in spec["volumes"]:
     if "persistentVolumeClaim" in v:
         v["persistentVolumeClaim"]["claimName"] = sys.argv[3]
 for c in spec["containers"]:
+    c["image"] = sys.argv[4]
     env = [e for e in c.get("env", []) if e["name"] != "SLICE_FRAMES"]
     c["env"] = env + [{"name": "SLICE_FRAMES", "value": "10"}, {"name": "JOB_COMPLETION_INDEX", "value": "1"}]
 pod = {"apiVersion": "v1", "kind": "Pod",
@@ -197,6 +216,16 @@ slice="$volume/slice-0001.jsonl"
 "$cli" verify-merge "$slice" --out "$work/slice.jsonl" 2>"$work/merge.log" || { cat "$work/merge.log" >&2; fail "the slice has misses or is malformed"; }
 [ "$(wc -l <"$work/slice.jsonl")" = 10 ] || fail "the slice has $(wc -l <"$work/slice.jsonl") lines, not 10"
 [ "$(head -c 12 "$work/slice.jsonl")" = '{"frame":10,' ] || fail "slice 1 does not start at frame 10"
+# The pod's slice is the host's verify of the same frames (timings aside).
+"$cli" verify --scene examples/paper/scene.json --frames examples/paper/frames.jsonl --first-frame 10 \
+  --frame-count 10 --resolution 640x360 --out "$work/host-slice.jsonl" -q || fail "the host's verify of frames 10-19 failed"
+python3 - "$work/host-slice.jsonl" "$work/slice.jsonl" <<'PY' || fail "the pod's slice differs from the host's verify"
+import json, sys
+def load(p):
+    return [{k: v for k, v in json.loads(l).items() if k != "stats"} for l in open(p)]
+a, b = load(sys.argv[1]), load(sys.argv[2])
+sys.exit(0 if a == b else f"host {a[:1]} ... vs pod {b[:1]} ...")
+PY
 say "verify slice of 10 frames at 640x360 in the pod: $(( $(date +%s) - t0 )) s ($(cat "$work/merge.log" | sed 's/^voxvis: //'))"
 down "$work/verify.play.yaml"
 
