@@ -415,9 +415,9 @@ grpc::ServerUnaryReactor* Service::ExportScene(grpc::CallbackServerContext* ctx,
         if (bytes > config_.max_message_bytes) {
           resp->Clear();
           g = grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
-                           "scene '" + id + "' exports as " + std::to_string(bytes >> 20) +
-                               " MiB, over --max-message-mib (" + std::to_string(config_.max_message_bytes >> 20) +
-                               " MiB): copy " + stored.json_path +
+                           "scene '" + id + "' exports as a message of " + std::to_string(bytes) +
+                               " bytes, over --max-message-mib (" + std::to_string(config_.max_message_bytes) +
+                               " bytes): copy " + stored.json_path +
                                " (and its .positions file) into the owner's data directory instead, with "
                                "both servers stopped (docs/deploy.md)");
         }
