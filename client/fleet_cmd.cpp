@@ -99,6 +99,15 @@ int run_rebalance(const RebalanceArgs& args) {
       continue;
     }
     const std::size_t from = found[0].shard;
+    if (from == owner && found[0].kept) {
+      // The server itself says another shard owns it: its --fleet and this
+      // list disagree; moving cannot mend that.
+      std::fprintf(stderr, "voxvis: error: scene '%s' is on %s, its owner by --servers, but that server keeps it "
+                   "unserved for another shard: its --fleet and --servers disagree\n", id.c_str(),
+                   shards[from].name.c_str());
+      ++failed;
+      continue;
+    }
     if (from == owner) {
       ++in_place;
       continue;

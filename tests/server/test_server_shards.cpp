@@ -292,6 +292,26 @@ TEST(ServerShards, ADrainedShardHandsEverySceneToTheRest) {
   EXPECT_EQ(found.size(), ids.size());
 }
 
+TEST(ServerShards, RebalanceNamesAListThatDisagreesWithTheServers) {
+  // A server keeps a scene for shard b (its --fleet is a,b), while the list
+  // given to rebalance has a alone: nothing can be moved, and it says why.
+  ServerProcess server;
+  ASSERT_TRUE(server.start());
+  std::string theirs;
+  for (int i = 0; theirs.empty(); ++i)
+    if (routing::owner(std::vector<std::string>{"a", "b"}, scene_id(i)) == 1) theirs = scene_id(i);
+  ASSERT_TRUE(server.api().create_scene_json(theirs, wall_scene_json()).ok());
+  EXPECT_EQ(server.terminate(), 0);
+  server.extra_args() = {"--shard", "a", "--fleet", "a,b"};
+  ASSERT_TRUE(server.restart());
+  const ProcessResult r =
+      run_program({VOXVIS_CLI, "rebalance", "--servers", "a=" + server.address()}, server.dir());
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("scene '" + theirs + "' is on a, its owner by --servers, but that server keeps it unserved"),
+            std::string::npos)
+      << r.err;
+}
+
 TEST(ServerShards, CreateWithPositionsChecksEveryEntry) {
   ServerProcess server;
   ASSERT_TRUE(server.start());
