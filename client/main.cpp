@@ -173,6 +173,7 @@ int run(int argc, char** argv) {
       ->type_name("SLICE");
   merge_cmd->add_option("--out", merge.out, "The joined output (JSON Lines); default stdout")->type_name("FILE");
   merge_cmd->add_option("--frames", merge.frames, "Frames the slices must cover, 0 to N-1 (a lost slice is an error)")
+      ->check(CLI::NonNegativeNumber)
       ->type_name("N");
   merge_cmd->footer(
       "The slices are sorted by their first frame; a gap or an overlap is an error naming\n"

@@ -73,8 +73,10 @@ int run_verify_merge(const VerifyMergeArgs& args) {
     if (!read_slice(args.slices[i], &slices[i], &code)) return code;
   // In frame order whatever order the shell's glob gave.
   std::erase_if(slices, [](const Slice& s) { return s.lines.empty(); });
+  if (slices.empty()) return report(FormatError{"", 0, "", "no frame in any slice (" + std::to_string(args.slices.size()) +
+                                                            " files): nothing to merge"});
   std::sort(slices.begin(), slices.end(), [](const Slice& a, const Slice& b) { return a.first < b.first; });
-  std::int64_t next = slices.empty() ? 0 : slices.front().first;
+  std::int64_t next = slices.front().first;
   if (args.frames >= 0 && next != 0)
     return report(FormatError{slices.front().path, 0, "", "starts at frame " + std::to_string(next) +
                                                               ": no slice has frames 0 to " + std::to_string(next - 1)});

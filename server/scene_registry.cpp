@@ -57,12 +57,10 @@ grpc::Status SceneRegistry::id_free_locked(const std::string& id) const {
 }
 
 Status place_dynamic(SceneDesc* desc, const std::vector<Move>& moves, bool strict, const std::string& field) {
+  // Ids are unique (moves_from_proto refuses a repeated one; a positions
+  // file is written from one map): the first of a repeated id would win.
   std::map<ObjectId, std::size_t> at;
-  for (std::size_t i = 0; i < moves.size(); ++i) {
-    if (!at.emplace(moves[i].id, i).second && strict)
-      return Status::Error(field + "[" + std::to_string(i) + "].id",
-                           "object " + std::to_string(moves[i].id) + " is given twice");
-  }
+  for (std::size_t i = 0; i < moves.size(); ++i) at.emplace(moves[i].id, i);
   std::size_t placed = 0;
   for (ObjectDesc& o : desc->objects) {
     auto it = at.find(o.id);

@@ -67,6 +67,15 @@ TEST_F(Cli, VerifyMergeJoinsSlicesIntoTheWholeRun) {
   EXPECT_THAT(r.err, HasSubstr("frame 0 is in two slices"));
   EXPECT_FALSE(std::filesystem::exists(path("gap.jsonl")));
 
+  // Nothing to merge, and a negative count.
+  spit(path("empty.jsonl"), "");
+  r = run({"verify-merge", path("empty.jsonl")});
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.err, HasSubstr("no frame in any slice (1 files): nothing to merge"));
+  r = run({"verify-merge", path("s0.jsonl"), "--frames", "-5"});
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.err, HasSubstr("--frames"));
+
   // Not verify's output.
   spit(path("bad.jsonl"), "{\"frame\":0,\"pvs\":[1,2]}\n");
   r = run({"verify-merge", path("bad.jsonl")});

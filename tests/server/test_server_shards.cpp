@@ -4,6 +4,8 @@
 // its scenes again, and `voxvis rebalance` moves every scene to its owner
 // after the fleet grew, dynamic objects' positions and clock included.
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <map>
 #include <memory>
 #include <set>
@@ -343,6 +345,10 @@ TEST(ServerShards, CreateWithPositionsChecksEveryEntry) {
       {{move(2, 14), move(2, 13)}, 0.0, "positions.moves[1].id"},
       {{move(2, 14), move(99, 13)}, 0.0, "positions.moves[1].id: no object 99"},
       {{move(2, 14)}, std::nan(""), "positions.t"},
+      {{move(2, 14)}, 1e11, "positions.t"},
+      {{move(2, std::nan(""))}, 0.0, "positions.moves[0].center"},
+      {{move(2, 1e13)}, 0.0, "positions.moves[0].center: magnitude must be at most"},
+      {{move(2, std::numeric_limits<double>::infinity())}, 0.0, "positions.moves[0].center"},
   };
   int n = 0;
   for (const auto& c : cases) {
