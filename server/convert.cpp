@@ -1,7 +1,6 @@
 #include "convert.h"
 
 #include <algorithm>
-#include <charconv>
 
 #include <cmath>
 #include <cstdio>
@@ -86,36 +85,6 @@ void share_identical_meshes(SceneDesc* desc) {
   }
 }
 
-namespace {
-
-/// Characters of a mesh's "vertices" and "triangles" values as
-/// scene_to_json writes them: numbers in their shortest form, "[x, y, z]"
-/// and "[i, j, k]" joined by ", ".
-std::uint64_t mesh_text_bytes(const Mesh& m) {
-  std::uint64_t n = 64;
-  char buf[64];
-  for (const Vec3& v : m.vertices)
-    for (int a = 0; a < 3; ++a) n += static_cast<std::uint64_t>(std::to_chars(buf, buf + sizeof buf, v[a]).ptr - buf);
-  for (const auto& t : m.triangles)
-    for (std::uint32_t i : t) n += static_cast<std::uint64_t>(std::to_chars(buf, buf + sizeof buf, i).ptr - buf);
-  return n + 8 * (m.vertices.size() + m.triangles.size());
-}
-
-}  // namespace
-
-std::uint64_t saved_scene_bytes(const SceneDesc& desc) {
-  std::unordered_map<const Mesh*, std::uint64_t> text;  // Each distinct mesh's, once.
-  std::uint64_t total = 512;
-  for (const ObjectDesc& o : desc.objects) {
-    total += 400;  // Its id, shape, placement or corners, dynamic and max_speed: less than this.
-    if (!o.mesh) continue;
-    const auto [it, added] = text.emplace(o.mesh.get(), 0);
-    if (added) it->second = mesh_text_bytes(*o.mesh);
-    total += it->second;
-  }
-  return total;
-}
-
 Status desc_from_proto(const v1::SceneDescription& in, SceneDesc* out) {
   *out = SceneDesc{};
   const std::string p = "description.";
@@ -143,6 +112,10 @@ Status desc_from_proto(const v1::SceneDescription& in, SceneDesc* out) {
         !s)
       return s;
   out->objects.reserve(static_cast<std::size_t>(in.objects_size()));
+  // Each table mesh is checked once, and each placement of it in O(1): a
+  // description that places a large mesh many times costs its size, not
+  // its instances times the mesh.
+  MeshPlacementCheck placements;
   for (int i = 0; i < in.objects_size(); ++i) {
     const v1::Object& o = in.objects(i);
     const std::string f = p + "objects[" + std::to_string(i) + "]";
@@ -186,7 +159,7 @@ Status desc_from_proto(const v1::SceneDescription& in, SceneDesc* out) {
         if (m.has_center()) d.center = Vec3(m.center().x(), m.center().y(), m.center().z());
         if (m.has_rotation()) d.rotation = Quat(m.rotation().w(), m.rotation().x(), m.rotation().y(), m.rotation().z());
         if (m.has_scale()) d.scale = m.scale();
-        if (Status s = validate_mesh_object(d, f + ".mesh"); !s) return s;
+        if (Status s = placements.check(d, f + ".mesh"); !s) return s;
         break;
       }
       default:

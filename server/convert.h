@@ -43,12 +43,6 @@ Status quat_from_proto(const v1::Quat& in, const std::string& field, Quat* out);
 /// stay what they were when it was created.
 void share_identical_meshes(SceneDesc* desc);
 
-/// About how many bytes scene_to_json(desc) writes (within a few per cent,
-/// a little over), counting each object's mesh inline as the file holds it,
-/// in a pass over each distinct mesh once: what a description's instancing
-/// expands to on disk, known before the text is made.
-std::uint64_t saved_scene_bytes(const SceneDesc& desc);
-
 /// Puts an engine Status from Scene::create on the request's field path.
 Status scene_create_error(const Status& engine, bool from_json, const std::string& json);
 

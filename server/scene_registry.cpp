@@ -9,6 +9,7 @@
 #include "calls.h"
 #include "convert.h"
 #include "voxvis/format.h"
+#include "voxvis/mesh.h"
 
 namespace voxvis::server {
 namespace {
@@ -62,6 +63,7 @@ Status place_dynamic(SceneDesc* desc, const std::vector<Move>& moves, bool stric
   std::map<ObjectId, std::size_t> at;
   for (std::size_t i = 0; i < moves.size(); ++i) at.emplace(moves[i].id, i);
   std::size_t placed = 0;
+  MeshPlacementCheck meshes;
   for (ObjectDesc& o : desc->objects) {
     auto it = at.find(o.id);
     if (it == at.end()) continue;
@@ -78,6 +80,14 @@ Status place_dynamic(SceneDesc* desc, const std::vector<Move>& moves, bool stric
     }
     o.center = m.center;
     if (m.has_rotation) o.rotation = m.rotation;
+    if (strict && o.shape == Shape::Mesh) {
+      // The move places the mesh: its errors are the move's (the centre,
+      // or the rotation that turns the mesh's box beyond the limit).
+      if (Status s = meshes.check(o, where); !s) {
+        const bool center = s.field == where + ".center" || !m.has_rotation;
+        return Status::Error(where + (center ? ".center" : ".rotation"), s.message);
+      }
+    }
     ++placed;
   }
   if (strict && placed != at.size()) {

@@ -48,8 +48,9 @@ struct StartPositions {
 /// Places the dynamic objects of `desc` that `moves` name at their centres
 /// (a mesh's rotation too); their ids are unique (the callers' parsers
 /// check). Strict (positions from the wire): every id must be a dynamic
-/// object of the scene, and only meshes may carry
-/// a rotation; errors name `field`[i]. Not strict (the data directory's
+/// object of the scene, only meshes may carry a rotation, and a mesh's new
+/// placement must pass validate_mesh_object's rules; errors name `field`[i]
+/// (".center" or ".rotation" for a placement beyond the limit). Not strict (the data directory's
 /// files, checked when written): other ids are ignored.
 Status place_dynamic(SceneDesc* desc, const std::vector<Move>& moves, bool strict, const std::string& field);
 

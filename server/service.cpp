@@ -51,6 +51,26 @@ TypedUnaryCall<Req, Resp>* start_call(Service* svc, const char* method,
   return nullptr;
 }
 
+/// RESOURCE_EXHAUSTED when `desc` would be saved as a scene file of more
+/// than `limit` bytes (scene_json_bytes: exact, in time proportional to the
+/// description), naming what makes it large; else OK.
+grpc::Status saved_file_check(const SceneDesc& desc, std::uint64_t limit) {
+  std::uint64_t meshes = 0;
+  const std::uint64_t file = scene_json_bytes(desc, &meshes);
+  if (file <= limit) return grpc::Status::OK;
+  std::size_t instances = 0;
+  for (const ObjectDesc& o : desc.objects) instances += o.shape == Shape::Mesh ? 1 : 0;
+  const std::string why =
+      2 * meshes > file ? " (" + std::to_string(meshes) + " bytes of them the vertices and triangles that each of its " +
+                              std::to_string(instances) + " mesh objects writes inline, instances included); " +
+                              "place fewer instances of large meshes"
+                        : " (" + std::to_string(desc.objects.size()) + " objects); split it into smaller scenes";
+  return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                      "description: the scene would be saved as a file of " + std::to_string(file) +
+                          " bytes, over the limit of " + std::to_string(limit) + " bytes (4 x --max-message-mib)" + why +
+                          ", or raise --max-message-mib");
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------
@@ -224,18 +244,11 @@ grpc::ServerUnaryReactor* Service::CreateScene(grpc::CallbackServerContext* ctx,
           s = desc_from_proto(req->description(), &desc);
           if (s) {
             // The scene is saved as a scene file, whose objects each carry
-            // their mesh inline: instancing multiplies it. Refused before
-            // the text is made when a restart could not read it back.
-            const std::uint64_t file = saved_scene_bytes(desc);
-            if (file > config_.max_saved_scene_bytes) {
-              too_large = grpc::Status(
-                  grpc::StatusCode::RESOURCE_EXHAUSTED,
-                  "description: the scene would be saved as a file of about " + std::to_string(file >> 20) +
-                      " MiB (each object's mesh written inline, instances included), over the limit of " +
-                      std::to_string(config_.max_saved_scene_bytes >> 20) +
-                      " MiB (4 x --max-message-mib); place fewer instances of large meshes");
-              break;
-            }
+            // their mesh inline: instancing multiplies it. Measured exactly
+            // (each mesh once) and refused before the text is made when a
+            // restart could not read it back.
+            too_large = saved_file_check(desc, config_.max_saved_scene_bytes);
+            if (!too_large.ok()) break;
             json = scene_to_json(desc);
           }
           break;

@@ -93,6 +93,7 @@ Status validate_desc(const SceneDesc& d, const SceneOptions& opt) {
 
   std::unordered_map<ObjectId, std::size_t> seen;
   seen.reserve(d.objects.size());
+  MeshPlacementCheck meshes;  // Each mesh validated once, however many objects place it.
   for (std::size_t i = 0; i < d.objects.size(); ++i) {
     const ObjectDesc& o = d.objects[i];
     auto [it, fresh] = seen.emplace(o.id, i);
@@ -104,7 +105,7 @@ Status validate_desc(const SceneDesc& d, const SceneOptions& opt) {
     if (max_abs(o.center) > kMaxCoordinate)
       return Status::Error(obj_field(i, "center"), "magnitude exceeds " + number_text(kMaxCoordinate));
     if (o.shape == Shape::Mesh) {
-      if (Status s = validate_mesh_object(o, "objects[" + std::to_string(i) + "]"); !s) return s;
+      if (Status s = meshes.check(o, "objects[" + std::to_string(i) + "]"); !s) return s;
     } else if (o.shape == Shape::Sphere) {
       if (!std::isfinite(o.radius) || !(o.radius > 0.0))
         return Status::Error(obj_field(i, "radius"), "must be > 0, got " + number_text(o.radius));

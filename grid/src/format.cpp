@@ -235,6 +235,7 @@ const char* axis_name(int axis) { return axis == 0 ? "x" : (axis == 1 ? "y" : "z
 struct ModelRefs {
   const SceneReadOptions* options = nullptr;
   std::map<std::pair<std::string, std::string>, std::shared_ptr<const Mesh>> loaded;
+  MeshPlacementCheck placements;  // A loaded model placed many times is validated once.
 };
 
 /// A mesh object's "model" (and "model_name"): the mesh the loader gives.
@@ -289,14 +290,15 @@ bool load_model_ref(Checker& ck, const json& v, const std::string& path, ModelRe
 
 /// A mesh object's placement: "center", "rotation", "scale", then
 /// validate_mesh_object's rules.
-bool parse_placement(Checker& ck, const json& v, const std::string& path, ObjectDesc* obj) {
+bool parse_placement(Checker& ck, const json& v, const std::string& path, ModelRefs* refs, ObjectDesc* obj) {
   const auto center = v.find("center");
   if (center != v.end() && !ck.vec3(*center, join_key(path, "center"), &obj->center)) return false;
   const auto rotation = v.find("rotation");
   if (rotation != v.end() && !ck.quat(*rotation, join_key(path, "rotation"), &obj->rotation)) return false;
   const auto scale = v.find("scale");
   if (scale != v.end() && !ck.number(*scale, join_key(path, "scale"), &obj->scale)) return false;
-  if (const Status st = validate_mesh_object(*obj, path); !st) return ck.fail(st.field, st.message);
+  const Status st = refs != nullptr ? refs->placements.check(*obj, path) : validate_mesh_object(*obj, path);
+  if (!st) return ck.fail(st.field, st.message);
   return true;
 }
 
@@ -319,7 +321,7 @@ bool parse_mesh(Checker& ck, const json& v, const std::string& path, ModelRefs* 
     if (!load_model_ref(ck, v, path, refs, &loaded)) return false;
     obj->shape = Shape::Mesh;
     obj->mesh = std::move(loaded);
-    return parse_placement(ck, v, path, obj);
+    return parse_placement(ck, v, path, refs, obj);
   }
   if (v.contains("model_name")) {
     const std::string kp = join_key(path, "model_name");
@@ -356,7 +358,8 @@ bool parse_mesh(Checker& ck, const json& v, const std::string& path, ModelRefs* 
   // The file names the mesh's keys on the object itself (no "mesh" key).
   if (const Status st = validate_mesh(*mesh, path); !st) return ck.fail(st.field, st.message);
   obj->mesh = std::move(mesh);
-  return parse_placement(ck, v, path, obj);
+  // Its own mesh, placed once: nothing to share with the other objects.
+  return parse_placement(ck, v, path, nullptr, obj);
 }
 
 bool parse_object(Checker& ck, const json& v, const std::string& path, ModelRefs* refs, ObjectDesc* out) {

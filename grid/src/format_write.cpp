@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstdint>
 #include <string>
+#include <string_view>
+#include <unordered_map>
 #include <vector>
 
 #include "format_text.h"
@@ -28,17 +30,20 @@ void append_quat(std::string& out, const Quat& q) {
   out += ']';
 }
 
-/// A mesh object's keys after its id: inline vertices and triangles, and its
-/// placement (always written, defaults included, so that a reader sees it).
-void append_mesh(std::string& out, const ObjectDesc& o) {
+/// A mesh object's placement keys after its id (always written, defaults
+/// included, so that a reader sees them).
+void append_mesh_placement(std::string& out, const ObjectDesc& o) {
   out += ", \"shape\": \"mesh\", \"center\": ";
   append_vec3(out, o.center);
   out += ", \"rotation\": ";
   append_quat(out, o.rotation);
   out += ", \"scale\": ";
   append_number(out, o.scale);
+}
+
+/// A mesh's keys after its placement: inline vertices and triangles.
+void append_mesh_data(std::string& out, const Mesh* m) {
   out += ", \"vertices\": [";
-  const Mesh* m = o.mesh.get();
   for (std::size_t i = 0; m != nullptr && i < m->vertices.size(); ++i) {
     if (i > 0) out += ", ";
     append_vec3(out, m->vertices[i]);
@@ -56,15 +61,8 @@ void append_mesh(std::string& out, const ObjectDesc& o) {
   out += ']';
 }
 
-}  // namespace
-
-using detail::append_int;
-using detail::append_number;
-using detail::append_vec3;
-
-std::string scene_to_json(const SceneDesc& scene) {
-  std::string out;
-  out.reserve(128 + scene.objects.size() * 96);
+/// The text before the objects.
+void append_scene_head(std::string& out, const SceneDesc& scene) {
   out += "{\n  \"format\": \"voxvis-scene/1\",\n  \"bounds\": {\"min\": ";
   append_vec3(out, scene.bounds_min);
   out += ", \"max\": ";
@@ -80,33 +78,95 @@ std::string scene_to_json(const SceneDesc& scene) {
     out += "],\n";
   }
   out += "  \"objects\": [";
+}
+
+/// One object's text, from its opening brace to its closing one; a mesh's
+/// vertices and triangles only when `mesh_data`.
+void append_object(std::string& out, const ObjectDesc& o, bool mesh_data) {
+  out += "{\"id\": ";
+  append_int(out, o.id);
+  if (o.shape == Shape::Mesh) {
+    append_mesh_placement(out, o);
+    if (mesh_data) append_mesh_data(out, o.mesh.get());
+  } else if (o.shape == Shape::Box) {
+    out += ", \"shape\": \"box\", \"min\": ";
+    append_vec3(out, o.center - o.half_extent);
+    out += ", \"max\": ";
+    append_vec3(out, o.center + o.half_extent);
+  } else {
+    out += ", \"shape\": \"sphere\", \"center\": ";
+    append_vec3(out, o.center);
+    out += ", \"radius\": ";
+    append_number(out, o.radius);
+  }
+  if (o.dynamic) {
+    out += ", \"dynamic\": true, \"max_speed\": ";
+    append_number(out, o.max_speed);
+  }
+  out += '}';
+}
+
+/// The length of append_mesh_data's text, one vertex or triangle at a time
+/// (the text of a large mesh is never held whole).
+std::uint64_t mesh_data_bytes(const Mesh* m) {
+  std::string one;
+  append_mesh_data(one, nullptr);  // The keys and brackets alone.
+  std::uint64_t n = one.size();
+  if (m == nullptr) return n;
+  for (const Vec3& v : m->vertices) {
+    one.clear();
+    append_vec3(one, v);
+    n += one.size();
+  }
+  for (const auto& t : m->triangles) {
+    one.clear();
+    for (const std::uint32_t i : t) append_int(one, i);
+    n += one.size() + 6;  // "[", "]" and two ", ".
+  }
+  const auto separators = [](std::size_t k) { return k > 0 ? 2 * (std::uint64_t{k} - 1) : 0; };
+  return n + separators(m->vertices.size()) + separators(m->triangles.size());
+}
+
+constexpr std::string_view kFirstObject = "\n    ", kNextObject = ",\n    ";
+constexpr std::string_view kEndEmpty = "]\n}\n", kEnd = "\n  ]\n}\n";
+
+}  // namespace
+
+using detail::append_int;
+using detail::append_number;
+using detail::append_vec3;
+
+std::string scene_to_json(const SceneDesc& scene) {
+  std::string out;
+  out.reserve(128 + scene.objects.size() * 96);
+  append_scene_head(out, scene);
   bool first = true;
   for (const ObjectDesc& o : scene.objects) {
-    out += first ? "\n    " : ",\n    ";
+    out += first ? kFirstObject : kNextObject;
     first = false;
-    out += "{\"id\": ";
-    append_int(out, o.id);
-    if (o.shape == Shape::Mesh) {
-      append_mesh(out, o);
-    } else if (o.shape == Shape::Box) {
-      out += ", \"shape\": \"box\", \"min\": ";
-      append_vec3(out, o.center - o.half_extent);
-      out += ", \"max\": ";
-      append_vec3(out, o.center + o.half_extent);
-    } else {
-      out += ", \"shape\": \"sphere\", \"center\": ";
-      append_vec3(out, o.center);
-      out += ", \"radius\": ";
-      append_number(out, o.radius);
-    }
-    if (o.dynamic) {
-      out += ", \"dynamic\": true, \"max_speed\": ";
-      append_number(out, o.max_speed);
-    }
-    out += '}';
+    append_object(out, o, true);
   }
-  out += first ? "]\n}\n" : "\n  ]\n}\n";
+  out += first ? kEndEmpty : kEnd;
   return out;
+}
+
+std::uint64_t scene_json_bytes(const SceneDesc& scene, std::uint64_t* inline_meshes) {
+  std::string text;
+  append_scene_head(text, scene);
+  std::uint64_t total = text.size(), meshes = 0;
+  std::unordered_map<const Mesh*, std::uint64_t> mesh_text;  // Each distinct mesh's, once.
+  for (std::size_t i = 0; i < scene.objects.size(); ++i) {
+    const ObjectDesc& o = scene.objects[i];
+    text.clear();
+    append_object(text, o, false);
+    total += (i == 0 ? kFirstObject : kNextObject).size() + text.size();
+    if (o.shape != Shape::Mesh) continue;
+    const auto [it, fresh] = mesh_text.try_emplace(o.mesh.get(), 0);
+    if (fresh) it->second = mesh_data_bytes(o.mesh.get());
+    meshes += it->second;
+  }
+  if (inline_meshes != nullptr) *inline_meshes = meshes;
+  return meshes + total + (scene.objects.empty() ? kEndEmpty : kEnd).size();
 }
 
 std::string frame_to_json(const FrameInput& frame) {

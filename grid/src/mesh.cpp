@@ -6,6 +6,7 @@
 #include <limits>
 
 #include <glm/geometric.hpp>
+#include <glm/gtc/quaternion.hpp>
 
 namespace voxvis {
 namespace {
@@ -42,19 +43,21 @@ Status validate_mesh(const Mesh& mesh, const std::string& field) {
                            "must be finite and at most " + number_text(kMaxCoordinate) + " on every axis, got " +
                                vec_text(v));
   }
+  // The field's text is made only for an error: this loop runs once per
+  // triangle of every mesh a description holds.
+  auto at = [&](std::size_t t) { return field + ".triangles[" + std::to_string(t) + "]"; };
   for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
     const auto& tri = mesh.triangles[t];
-    const std::string at = field + ".triangles[" + std::to_string(t) + "]";
     for (int k = 0; k < 3; ++k)
       if (tri[static_cast<std::size_t>(k)] >= nv)
-        return Status::Error(at, "vertex index " + std::to_string(tri[static_cast<std::size_t>(k)]) +
-                                     " is out of range (the mesh has " + std::to_string(nv) + " vertices)");
+        return Status::Error(at(t), "vertex index " + std::to_string(tri[static_cast<std::size_t>(k)]) +
+                                        " is out of range (the mesh has " + std::to_string(nv) + " vertices)");
     const Vec3& a = mesh.vertices[tri[0]];
     const Vec3 n = glm::cross(mesh.vertices[tri[1]] - a, mesh.vertices[tri[2]] - a);
     if (!(max_abs3(n) > 0.0))
-      return Status::Error(at, "is degenerate (its vertices " + std::to_string(tri[0]) + ", " +
-                                   std::to_string(tri[1]) + ", " + std::to_string(tri[2]) +
-                                   " span no area); remove it");
+      return Status::Error(at(t), "is degenerate (its vertices " + std::to_string(tri[0]) + ", " +
+                                      std::to_string(tri[1]) + ", " + std::to_string(tri[2]) +
+                                      " span no area); remove it");
   }
   return Status::Ok();
 }
@@ -68,19 +71,44 @@ Status validate_rotation(const Quat& q, const std::string& field) {
 }
 
 Status validate_mesh_object(const ObjectDesc& o, const std::string& field) {
+  MeshPlacementCheck check;
+  return check.check(o, field);
+}
+
+Status MeshPlacementCheck::check(const ObjectDesc& o, const std::string& field) {
   if (!o.mesh) return Status::Error(field + ".mesh", "a mesh object needs its triangles");
-  if (Status s = validate_mesh(*o.mesh, field + ".mesh"); !s) return s;
+  auto it = measured_.find(o.mesh.get());
+  if (it == measured_.end()) {
+    if (Status s = validate_mesh(*o.mesh, field + ".mesh"); !s) return s;
+    ModelBox box{Vec3(std::numeric_limits<double>::infinity()), Vec3(-std::numeric_limits<double>::infinity())};
+    for (const Vec3& v : o.mesh->vertices) box.lo = glm::min(box.lo, v), box.hi = glm::max(box.hi, v);
+    it = measured_.emplace(o.mesh.get(), box).first;
+  }
   if (!std::isfinite(o.scale) || !(o.scale > 0.0))
     return Status::Error(field + ".scale", "must be finite and > 0, got " + number_text(o.scale));
   if (Status s = validate_rotation(o.rotation, field + ".rotation"); !s) return s;
   if (!finite3(o.center) || max_abs3(o.center) > kMaxCoordinate)
     return Status::Error(field + ".center", "must be finite and at most " + number_text(kMaxCoordinate) +
                                                 " on every axis, got " + vec_text(o.center));
-  Vec3 lo, hi;
-  mesh_bounds(o, &lo, &hi);
-  if (!finite3(lo) || !finite3(hi) || std::fmax(max_abs3(lo), max_abs3(hi)) > kMaxCoordinate)
-    return Status::Error(field + ".scale", "places the mesh beyond " + number_text(kMaxCoordinate) +
-                                               " (its box " + vec_text(lo) + " to " + vec_text(hi) + ")");
+  // The model box placed: its centre placed, and per axis the reach of its
+  // rotated half extents (|R| h), grown by one part in 2^40 for roundings,
+  // so that it holds every vertex as place() computes it.
+  const Quat q = unit_rotation(o.rotation);
+  const Vec3 mid = 0.5 * (it->second.lo + it->second.hi), half = 0.5 * (it->second.hi - it->second.lo);
+  const glm::dmat3 r = glm::mat3_cast(q);
+  Vec3 reach(0.0);
+  for (int a = 0; a < 3; ++a)
+    for (int k = 0; k < 3; ++k) reach[a] += std::fabs(r[k][a]) * half[k];
+  const Vec3 around = o.scale * (q * mid), spread = o.scale * reach;
+  const Vec3 lo = o.center + around - spread, hi = o.center + around + spread;
+  constexpr double kRounding = 1.0 + 0x1p-40;
+  if (!(max_abs3(glm::abs(o.center + around) + spread) * kRounding <= kMaxCoordinate)) {
+    // At the origin the box would fit: the centre takes it beyond.
+    const bool by_center = max_abs3(glm::abs(around) + spread) * kRounding <= kMaxCoordinate;
+    return Status::Error(field + (by_center ? ".center" : ".scale"),
+                         "places the mesh beyond " + number_text(kMaxCoordinate) + " (its box " + vec_text(lo) +
+                             " to " + vec_text(hi) + ")");
+  }
   return Status::Ok();
 }
 

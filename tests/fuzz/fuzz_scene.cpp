@@ -5,7 +5,7 @@
 //  * an accepted one survives a round trip: its written text parses back to
 //    the same scene, and writing that again gives the same text (the server
 //    stores scenes made from CreateScene descriptions this way, and reloads
-//    them after a restart);
+//    them after a restart), and scene_json_bytes foresees its length exactly;
 //  * scene_field_line, which puts the engine's errors on lines, finds a line
 //    of the document.
 #include <cstddef>
@@ -65,6 +65,10 @@ void check_round_trip(const SceneDesc& scene) {
     fail("the written scene parses to another scene (" + diff + "):\n" + written);
   }
   if (scene_to_json(back) != written) fail("writing the scene again gives another text:\n" + written);
+  // The server refuses a scene by this figure before writing its text.
+  if (scene_json_bytes(scene) != written.size())
+    fail("scene_json_bytes says " + std::to_string(scene_json_bytes(scene)) + " bytes, the text has " +
+         std::to_string(written.size()) + ":\n" + written);
 }
 
 }  // namespace

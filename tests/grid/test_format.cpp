@@ -422,8 +422,9 @@ TEST(SceneFormat, RoundTripIsExact) {
     EXPECT_EQ(y.dynamic, x.dynamic);
     EXPECT_EQ(y.max_speed, x.max_speed);
   }
-  // And the text is stable.
+  // And the text is stable, its length foreseen exactly.
   EXPECT_EQ(scene_to_json(back), text);
+  EXPECT_EQ(scene_json_bytes(d), text.size());
 }
 
 TEST(SceneFormat, RoundTripOfGeneratedScene) {
@@ -432,6 +433,7 @@ TEST(SceneFormat, RoundTripOfGeneratedScene) {
   p.dynamic = 20;
   const SceneDesc d = make_paper_scene(p);
   const SceneDesc back = parse_ok(scene_to_json(d));
+  EXPECT_EQ(scene_json_bytes(d), scene_to_json(d).size());
   ASSERT_EQ(back.objects.size(), d.objects.size());
   EXPECT_FALSE(back.grid.has_value());
   for (std::size_t i = 0; i < d.objects.size(); ++i) {
@@ -447,6 +449,7 @@ TEST(SceneFormat, EmptySceneRoundTrips) {
   SceneDesc d;
   const std::string text = scene_to_json(d);
   EXPECT_TRUE(parse_ok(text).objects.empty());
+  EXPECT_EQ(scene_json_bytes(d), text.size());
 }
 
 // ---------------------------------------------------------------------------

@@ -122,6 +122,22 @@ TEST(MeshFormat, RoundTripIsExact) {
   EXPECT_EQ(b.rotation, o.rotation);
   EXPECT_EQ(b.scale, o.scale);
   EXPECT_EQ(b.max_speed, o.max_speed);
+  // Its length foreseen exactly, the mesh measured once for many placements.
+  EXPECT_EQ(scene_json_bytes(d), scene_to_json(d).size());
+  for (ObjectId id = 0; id < 40; ++id) {
+    ObjectDesc again = o;
+    again.id = id;
+    again.dynamic = id % 2 == 0;
+    again.center = Vec3(-0.0, id * 1e-9, -1e11 / (id + 1));
+    d.objects.push_back(again);
+  }
+  std::uint64_t meshes = 0;
+  EXPECT_EQ(scene_json_bytes(d, &meshes), scene_to_json(d).size());
+  SceneDesc one = d;
+  one.objects.resize(1);
+  std::uint64_t mesh_once = 0;
+  scene_json_bytes(one, &mesh_once);
+  EXPECT_EQ(meshes, 41 * mesh_once) << "every object writes its mesh inline";
 }
 
 TEST(MeshFormat, MovesMayRotate) {

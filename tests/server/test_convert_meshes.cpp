@@ -143,24 +143,22 @@ TEST(ConvertMeshes, SceneRoundTripIsBitExactAndKeepsInstancesShared) {
 }
 
 TEST(ConvertMeshes, SavedSceneBytesForeseesTheFile) {
-  // Known before the text is made, each distinct mesh looked at once; at
-  // least the file's size and within a few per cent of it.
+  // Known before the text is made, each distinct mesh looked at once:
+  // exactly the file's size.
   SceneDesc d = mesh_scene();
   const std::shared_ptr<const Mesh> big = test::icosphere(4);
   for (ObjectId id = 20; id < 26; ++id)
     d.objects.push_back(test::mesh_object(id, big, Vec3(1.0 + id / 3.0, 4, 5), test::rotation_about(Vec3(1, 0, 0), id)));
-  const double file = static_cast<double>(scene_to_json(d).size());
-  const double foreseen = static_cast<double>(saved_scene_bytes(d));
-  EXPECT_GE(foreseen, file);
-  EXPECT_LE(foreseen, 1.05 * file);
+  const std::uint64_t file = scene_to_json(d).size();
+  std::uint64_t meshes = 0;
+  EXPECT_EQ(scene_json_bytes(d, &meshes), file);
+  EXPECT_GT(meshes, file / 2);
   // Each instance is written in full: six more, six more copies of the mesh.
   for (ObjectId id = 30; id < 36; ++id)
     d.objects.push_back(test::mesh_object(id, big, Vec3(1.0 + id / 3.0, 6, 5)));
-  const double more_file = static_cast<double>(scene_to_json(d).size()) - file;
-  const double more_foreseen = static_cast<double>(saved_scene_bytes(d)) - foreseen;
-  EXPECT_GT(more_file, 6 * 0.9 * static_cast<double>(big->vertices.size() * 3 * 15));
-  EXPECT_GE(more_foreseen, more_file);
-  EXPECT_LE(more_foreseen, 1.05 * more_file);
+  const std::uint64_t more_file = scene_to_json(d).size();
+  EXPECT_GT(static_cast<double>(more_file - file), 6 * 0.9 * static_cast<double>(big->vertices.size() * 3 * 15));
+  EXPECT_EQ(scene_json_bytes(d), more_file);
 }
 
 TEST(ConvertMeshes, SharingNeedsTheSameBits) {

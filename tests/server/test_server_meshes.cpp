@@ -404,11 +404,30 @@ TEST(ServerMeshes, InstancingBeyondWhatTheSavedFileHoldsIsRefused) {
   EXPECT_EQ(info.mesh_triangles(), 5120u);
   s = api.create_scene("many", instances(30));
   EXPECT_EQ(s.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << show(s);
-  EXPECT_THAT(s.error_message(), HasSubstr("description: the scene would be saved as a file of about "));
-  EXPECT_THAT(s.error_message(), HasSubstr("over the limit of 4 MiB (4 x --max-message-mib)"));
+  EXPECT_THAT(s.error_message(), HasSubstr("description: the scene would be saved as a file of "));
+  EXPECT_THAT(s.error_message(), HasSubstr(" bytes, over the limit of 4194304 bytes (4 x --max-message-mib)"));
+  EXPECT_THAT(s.error_message(), HasSubstr("each of its 30 mesh objects writes inline"));
+  // Spheres alone are no instancing: 11,000 of them (a 0.6 MB message, a
+  // 1.2 MB file) are created (the old estimate, 400 bytes an object, said
+  // "about 4 MiB" and refused them, blaming meshes).
+  SceneDesc spheres;
+  spheres.bounds_min = Vec3(0.0);
+  spheres.bounds_max = Vec3(1000.0);
+  for (int i = 0; i < 11000; ++i) {
+    ObjectDesc o;
+    o.id = static_cast<ObjectId>(100 + i);
+    o.center = Vec3(1.0 + (i % 100) * 9.7, 1.0 + (i / 100 % 100) * 9.3, 500.0 + i / 10000 * 3.1);
+    o.radius = 0.5 + (i % 7) * 0.01;
+    spheres.objects.push_back(o);
+  }
+  v1::SceneDescription wire;
+  to_proto(spheres, &wire);
+  ASSERT_GT(wire.ByteSizeLong(), std::size_t{450'000});
+  s = api.create_scene("spheres", wire);
+  EXPECT_TRUE(s.ok()) << show(s);
   std::vector<std::string> ids;
   ASSERT_TRUE(api.list_scenes(&ids).ok());
-  EXPECT_EQ(ids, std::vector<std::string>{"few"});
+  EXPECT_EQ(ids, (std::vector<std::string>{"few", "spheres"}));
   EXPECT_FALSE(std::filesystem::exists(server.data_dir() + "/scenes/many.json"));
   EXPECT_EQ(server.terminate(), 0);
 }
@@ -465,6 +484,10 @@ TEST(ServerMeshes, InvalidMeshesAreRefusedNamingTheField) {
        [nan](v1::SceneDescription* d) { d->mutable_objects(1)->mutable_mesh()->mutable_center()->set_y(nan); }},
       {"description.objects[1].mesh.scale: places the mesh beyond 1e+12",
        [](v1::SceneDescription* d) { d->mutable_objects(1)->mutable_mesh()->set_scale(1e12); }},
+      // A centre within the limit that takes the mesh beyond it: the
+      // centre is named, not the scale (1) that fits at the origin.
+      {"description.objects[1].mesh.center: places the mesh beyond 1e+12",
+       [](v1::SceneDescription* d) { d->mutable_objects(1)->mutable_mesh()->mutable_center()->set_x(1e12); }},
       {"description.objects[1].max_speed: only dynamic objects have a max_speed",
        [](v1::SceneDescription* d) { d->mutable_objects(1)->set_max_speed(1); }},
       {"description.objects[2].max_speed: dynamic objects need max_speed (world units per second)",
@@ -529,6 +552,26 @@ TEST(ServerMeshes, InvalidMeshesAreRefusedNamingTheField) {
   ASSERT_TRUE(api.stats("good", &info).ok());
   EXPECT_EQ(info.moves_applied(), 0u);
   EXPECT_FALSE(pvs_of(api, "good", 0.0, look(Vec3(4, 4, -5), Vec3(0, 0, 1))).empty());
+
+  // Positions another server exported place meshes as moves do: a centre
+  // that takes the mesh beyond the limit is the move's, not the object's.
+  const auto create_at = [&](const std::string& id, const Move& m) {
+    grpc::ClientContext ctx;
+    api.prepare(&ctx);
+    v1::CreateSceneRequest req;
+    req.set_scene_id(id);
+    *req.mutable_description() = small_mesh_scene();
+    v1::ScenePositions* p = req.mutable_positions();
+    p->set_t(1.0);
+    to_proto(m, p->add_moves());
+    v1::SceneInfo created;
+    return api.stub().CreateScene(&ctx, req, &created);
+  };
+  s = create_at("far", Move{3, Vec3(1e12, 6, 6)});
+  EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << show(s);
+  EXPECT_THAT(s.error_message(), ::testing::StartsWith("positions.moves[0].center: places the mesh beyond 1e+12"));
+  s = create_at("near", Move{3, Vec3(1e12 - 10, 6, 6), true, Quat(0, 0, 0, 1)});
+  EXPECT_TRUE(s.ok()) << show(s);
   EXPECT_EQ(server.terminate(), 0);
 }
 

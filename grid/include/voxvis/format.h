@@ -90,6 +90,15 @@ bool parse_frames(std::istream& in, std::string_view source, std::vector<FrameIn
 /// Serializes a scene to voxvis-scene/1 text (used by `voxvis generate`).
 std::string scene_to_json(const SceneDesc& scene);
 
+/// The length in bytes of scene_to_json(scene), exactly, without making
+/// the text: each distinct mesh's vertices and triangles are measured once
+/// however many objects place it (every object writes them inline), so the
+/// cost is the description's size, not the text's (a server refuses a
+/// scene whose saved file would be too large before writing it).
+/// `inline_meshes`, when given, is set to the part of it that the meshes'
+/// vertices and triangles take.
+std::uint64_t scene_json_bytes(const SceneDesc& scene, std::uint64_t* inline_meshes = nullptr);
+
 /// Serializes one frames line.
 std::string frame_to_json(const FrameInput& frame);
 

@@ -10,6 +10,7 @@
 
 #include <cstddef>
 #include <string>
+#include <unordered_map>
 
 #include "voxvis/types.h"
 
@@ -36,10 +37,31 @@ Status validate_mesh(const Mesh& mesh, const std::string& field);
 Status validate_rotation(const Quat& q, const std::string& field);
 
 /// Checks a mesh object's placement: a mesh given and valid (validate_mesh),
-/// scale finite and > 0, rotation valid, and every vertex placed within
-/// kMaxCoordinate on every axis. Errors name `field` + ".mesh", ".scale",
-/// ".rotation" or ".center".
+/// scale finite and > 0, rotation valid, centre finite and within
+/// kMaxCoordinate, and the mesh's model box (the box of its vertices),
+/// placed, within kMaxCoordinate on every axis: a bound on every placed
+/// vertex that costs O(1) per object once the mesh is measured. Errors name
+/// `field` + ".mesh", ".scale", ".rotation" or ".center" (".center" when the
+/// placed box would fit at the origin, so that the centre takes it beyond;
+/// else ".scale"). O(the mesh's size): MeshPlacementCheck checks many
+/// objects placing one mesh at O(1) each.
 Status validate_mesh_object(const ObjectDesc& o, const std::string& field);
+
+/// validate_mesh_object for many objects, each distinct mesh validated and
+/// measured once (O(its vertices and triangles)), each object then in O(1):
+/// a description that places one mesh many times costs what its text does.
+/// Meshes are told apart by address: each must outlive the check. Not
+/// thread-safe.
+class MeshPlacementCheck {
+ public:
+  Status check(const ObjectDesc& o, const std::string& field);
+
+ private:
+  struct ModelBox {
+    Vec3 lo, hi;
+  };
+  std::unordered_map<const Mesh*, ModelBox> measured_;
+};
 
 /// `q` scaled to unit norm (validate_rotation's rotations are within 1e-6).
 Quat unit_rotation(const Quat& q);
