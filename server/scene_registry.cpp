@@ -143,22 +143,28 @@ grpc::Status SceneRegistry::create(const std::string& id, SceneDesc desc, const 
   SceneCost cost;
   if (Status s = Scene::estimate(desc, opt, &cost, &ctl); !s) return engine_status(s, budget_text);
   const std::uint64_t bytes = cost.served_bytes(config_.workers);
+  // While it builds, the scene takes its temporaries too, and its text (as
+  // saved) is held.
+  const std::uint64_t building = bytes + cost.build_bytes + json.size();
   {
     std::lock_guard<std::mutex> lock(mu_);
     if (grpc::Status s = id_free_locked(id); !s.ok()) return s;
-    if (bytes_in_use_ + bytes > config_.memory_budget_bytes)
+    if (bytes_in_use_ + building > config_.memory_budget_bytes)
       return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
-                          "memory: the scene needs about " + mib(bytes) + " (grid " + std::to_string(cost.res.x) +
+                          "memory: the scene needs about " + mib(building) + " (grid " + std::to_string(cost.res.x) +
                               "x" + std::to_string(cost.res.y) + "x" + std::to_string(cost.res.z) + ", " +
                               std::to_string(cost.id_entries) + " id-list entries, scratch of " +
-                              std::to_string(config_.workers) + " workers); memory budget " +
-                              mib(config_.memory_budget_bytes) + ", " + mib(bytes_in_use_) + " in use");
-    reserved_[id] = bytes;
-    bytes_in_use_ += bytes;
+                              std::to_string(config_.workers) + " workers" +
+                              (cost.build_bytes > bytes / 4 ? ", " + mib(cost.build_bytes) + " of it while it builds"
+                                                            : std::string()) +
+                              "); memory budget " + mib(config_.memory_budget_bytes) + ", " + mib(bytes_in_use_) +
+                              " in use");
+    reserved_[id] = building;
+    bytes_in_use_ += building;
   }
 
   // From here on every way out but the registration below, a throw
-  // included, gives the id and the bytes back.
+  // included, gives the id and the bytes reserved back.
   struct Reservation {
     std::function<void()> release;
     ~Reservation() {
@@ -166,17 +172,31 @@ grpc::Status SceneRegistry::create(const std::string& id, SceneDesc desc, const 
     }
   } reservation{[&] {
     std::lock_guard<std::mutex> lock(mu_);
+    bytes_in_use_ -= reserved_[id];
     reserved_.erase(id);
-    bytes_in_use_ -= bytes;
   }};
   auto entry = std::make_shared<SceneEntry>();
-  ctl.max_bytes = cost.bytes;
+  // The build counts what it allocates against its estimate; past it, more
+  // is reserved while the budget has room, else the build stops.
+  ctl.max_bytes = cost.bytes + cost.build_bytes;
+  ctl.reserve = [this, &id, granted = ctl.max_bytes](std::uint64_t needed) mutable {
+    std::lock_guard<std::mutex> lock(mu_);
+    const std::uint64_t more = needed > granted ? needed - granted : 0;
+    if (bytes_in_use_ + more > config_.memory_budget_bytes) return false;
+    reserved_[id] += more;
+    bytes_in_use_ += more;
+    granted = needed;
+    return true;
+  };
   Status s = Scene::create(desc, opt, &entry->scene, &ctl);
   if (!s) return engine_status(s, budget_text);
   if (!fail_build_.empty() && id == fail_build_) throw std::runtime_error("fault injected (VOXVIS_TEST_FAIL_BUILD)");
+  // What the scene keeps: its estimate, or what its build counted when
+  // that was more.
+  const std::uint64_t kept = std::max(cost.bytes, entry->scene->built_bytes()) + cost.scratch_bytes * config_.workers;
   entry->id = id;
   entry->strand = std::make_shared<Strand>(pool_, "scene:" + id);
-  entry->memory_bytes = bytes;
+  entry->memory_bytes = kept;
   entry->grid = entry->scene->grid();
   entry->objects = static_cast<std::uint32_t>(entry->scene->object_count());
   entry->dynamic_objects = static_cast<std::uint32_t>(entry->scene->dynamic_count());
@@ -218,7 +238,8 @@ grpc::Status SceneRegistry::create(const std::string& id, SceneDesc desc, const 
   std::size_t count;
   {
     std::lock_guard<std::mutex> lock(mu_);
-    reservation.release = nullptr;  // The bytes stay, now the scene's.
+    reservation.release = nullptr;  // What the scene keeps stays, now the scene's.
+    bytes_in_use_ = bytes_in_use_ - reserved_[id] + kept;
     reserved_.erase(id);
     scenes_[id] = entry;
     count = scenes_.size();

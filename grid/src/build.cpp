@@ -1,572 +1,65 @@
-// build.cpp — building a scene: validation of its description, the grid it
-// gets, what it costs (Scene::estimate, counted from the objects' footprints
-// without building) and Scene::create, which counts first and allocates
-// nothing before the figure fits. The rest of a scene's life (moves, TBVs)
-// is in scene.cpp.
+// build.cpp — building a scene (Scene::create): after its description is
+// checked and its objects set up (build_validate.cpp) and its cost counted
+// (build_cost.cpp), nothing is allocated before its figure fits; then the
+// static id lists, the static cover, the occluders of the occlusion buffer
+// (opaque boxes, meshes' quads and interiors), the cell traversal's
+// summaries and the dynamic objects' state, each a named phase below, each
+// charging its memory as it goes (build_parts.h). The rest of a scene's life
+// (moves, TBVs) is in scene.cpp.
 #include <algorithm>
 #include <array>
 #include <bit>
 #include <cmath>
-#include <cstdio>
+#include <functional>
 #include <limits>
+#include <map>
+#include <memory>
 #include <string>
+#include <unordered_map>
+#include <vector>
 
 #include <glm/geometric.hpp>
 
-#include "numeric.h"
+#include "build_parts.h"
 #include "mesh_interior.h"
+#include "mesh_pairs.h"
+#include "numeric.h"
 #include "opaque_boxes.h"
 #include "scene_impl.h"
 #include "tri_box.h"
 
-#include <map>
-
 namespace voxvis {
-
-using detail::Obj;
-using detail::VoxBox;
-using detail::clamp_floor;
-using detail::finite3;
-using detail::kUlp;
-using detail::max_abs;
-
+namespace build {
 namespace {
-
-/// Longest side of an opaque box, voxels (opaque_boxes.h).
-constexpr int kOpaqueBoxSide = 16;
-
-std::string obj_field(std::size_t i, const char* name) {
-  return "objects[" + std::to_string(i) + "]." + name;
-}
-
-Status validate_desc(const SceneDesc& d, const SceneOptions& opt) {
-  if (!finite3(d.bounds_min) || !finite3(d.bounds_max))
-    return Status::Error("bounds", "must be finite numbers");
-  if (max_abs(d.bounds_min) > kMaxCoordinate || max_abs(d.bounds_max) > kMaxCoordinate)
-    return Status::Error("bounds", "magnitude exceeds " + number_text(kMaxCoordinate));
-  for (int a = 0; a < 3; ++a) {
-    if (!(d.bounds_min[a] < d.bounds_max[a]))
-      return Status::Error("bounds", std::string("min must be < max on every axis; axis ") +
-                                         "xyz"[a] + " has " + number_text(d.bounds_min[a]) +
-                                         " >= " + number_text(d.bounds_max[a]));
-    const double extent = d.bounds_max[a] - d.bounds_min[a];
-    if (!(extent >= kMinExtent))
-      return Status::Error("bounds", std::string("extent on axis ") + "xyz"[a] + " is " + number_text(extent) +
-                                         "; it must be at least " + number_text(kMinExtent) + " world units");
-    if (!(extent > 64 * kUlp * std::fmax(std::fabs(d.bounds_min[a]), std::fabs(d.bounds_max[a]))))
-      return Status::Error("bounds", std::string("extent on axis ") + "xyz"[a] +
-                                         " is too small to be resolved at this offset");
-  }
-  if (d.grid) {
-    const glm::ivec3 g = *d.grid;
-    for (int a = 0; a < 3; ++a) {
-      if (g[a] < 1)
-        return Status::Error("grid", "resolution must be >= 1 on every axis, got " +
-                                         std::to_string(g[a]));
-      if (g[a] > opt.max_resolution)
-        return Status::Error("grid", "resolution " + std::to_string(g[a]) +
-                                         " exceeds the per-axis limit of " +
-                                         std::to_string(opt.max_resolution));
-    }
-    const std::int64_t n = std::int64_t{g.x} * g.y * g.z;
-    if (n > opt.max_voxels)
-      return Status::Error("grid", std::to_string(g.x) + "x" + std::to_string(g.y) + "x" +
-                                       std::to_string(g.z) + " = " + std::to_string(n) +
-                                       " voxels exceeds the limit of " +
-                                       std::to_string(opt.max_voxels));
-  }
-  if (!(opt.tbv_period == 0.0 || opt.tbv_period >= kMinTbvPeriod) || !std::isfinite(opt.tbv_period))
-    return Status::Error("tbv_period", "must be 0 (per object) or a finite number of seconds >= 0.001");
-  if (!(opt.tbv_voxels > 0.0) || !std::isfinite(opt.tbv_voxels))
-    return Status::Error("tbv_voxels", "must be finite and > 0");
-  if (!(opt.tbv_max_voxels >= opt.tbv_voxels) || !std::isfinite(opt.tbv_max_voxels))
-    return Status::Error("tbv_max_voxels", "must be finite and >= tbv_voxels");
-  if (!(opt.tbv_max_period > 0.0) || !std::isfinite(opt.tbv_max_period))
-    return Status::Error("tbv_max_period", "must be finite and > 0");
-  if (!(opt.tbv_seen_memory >= 0.0) || !std::isfinite(opt.tbv_seen_memory))
-    return Status::Error("tbv_seen_memory", "must be a finite number of seconds >= 0");
-  if (opt.occlusion_buffer != 0 &&
-      (opt.occlusion_buffer < 8 || opt.occlusion_buffer > detail::OcclusionBuffer::kMaxSide))
-    return Status::Error("occlusion_buffer", "must be 0 (off) or a width in pixels from 8 to " +
-                                                 std::to_string(detail::OcclusionBuffer::kMaxSide) +
-                                                 ", got " + std::to_string(opt.occlusion_buffer));
-
-  std::unordered_map<ObjectId, std::size_t> seen;
-  seen.reserve(d.objects.size());
-  MeshPlacementCheck meshes;  // Each mesh validated once, however many objects place it.
-  for (std::size_t i = 0; i < d.objects.size(); ++i) {
-    const ObjectDesc& o = d.objects[i];
-    auto [it, fresh] = seen.emplace(o.id, i);
-    if (!fresh)
-      return Status::Error(obj_field(i, "id"), "duplicate id " + std::to_string(o.id) +
-                                                   " (also objects[" +
-                                                   std::to_string(it->second) + "])");
-    if (!finite3(o.center)) return Status::Error(obj_field(i, "center"), "must be finite");
-    if (max_abs(o.center) > kMaxCoordinate)
-      return Status::Error(obj_field(i, "center"), "magnitude exceeds " + number_text(kMaxCoordinate));
-    if (o.shape == Shape::Mesh) {
-      if (Status s = meshes.check(o, "objects[" + std::to_string(i) + "]"); !s) return s;
-    } else if (o.shape == Shape::Sphere) {
-      if (!std::isfinite(o.radius) || !(o.radius > 0.0))
-        return Status::Error(obj_field(i, "radius"), "must be > 0, got " + number_text(o.radius));
-      if (o.radius > kMaxCoordinate)
-        return Status::Error(obj_field(i, "radius"), "exceeds " + number_text(kMaxCoordinate));
-    } else {
-      if (!finite3(o.half_extent))
-        return Status::Error(obj_field(i, "max"), "box extents must be finite");
-      for (int a = 0; a < 3; ++a)
-        if (!(o.half_extent[a] >= 0.0))
-          return Status::Error(obj_field(i, "min"), "box min must be <= max on every axis");
-      if (max_abs(o.half_extent) > kMaxCoordinate)
-        return Status::Error(obj_field(i, "max"), "box extent exceeds " + number_text(kMaxCoordinate));
-    }
-    if (o.dynamic && (!std::isfinite(o.max_speed) || !(o.max_speed >= 0.0)))
-      return Status::Error(obj_field(i, "max_speed"),
-                           "must be finite and >= 0, got " + number_text(o.max_speed));
-  }
-  return Status::Ok();
-}
-
-/// `lo` and `hi` (lo <= hi) rounded outwards to multiples of q, a power of
-/// two chosen so that their sum, difference and halves are exact
-/// (set_box_corners). With m = max(|lo|, |hi|) <= 2^e, e as small as can be,
-/// q = 2^(e-52): multiples of q up to 2^e have at most 53 significant bits,
-/// their sums up to 2^(e+1) too, and halves of those are multiples of q/2
-/// up to 2^e. Rounding keeps the magnitudes at most 2^e (a multiple of q),
-/// so rounding again finds the same e and changes nothing. q is at least
-/// 2^-1073, so that halves stay above the smallest subnormal.
-void round_corners_out(double* lo, double* hi) {
-  const double m = std::fmax(std::fabs(*lo), std::fabs(*hi));
-  if (m == 0.0) return;
-  int e = 0;
-  const double f = std::frexp(m, &e);  // m = f * 2^e, f in [0.5, 1)
-  if (f == 0.5) --e;                   // m = 2^(e-1) exactly
-  const double q = std::ldexp(1.0, std::max(e - 52, -1073));
-  // Dividing by a power of two is exact here (the quotients are at most 2^52).
-  *lo = std::floor(*lo / q) * q;
-  *hi = std::ceil(*hi / q) * q;
-}
-
-}  // namespace
-
-void set_box_corners(const Vec3& lo, const Vec3& hi, ObjectDesc* out) {
-  out->shape = Shape::Box;
-  for (int a = 0; a < 3; ++a) {
-    double l = lo[a], h = hi[a];
-    round_corners_out(&l, &h);
-    out->center[a] = (l + h) * 0.5;
-    out->half_extent[a] = (h - l) * 0.5;
-  }
-}
-
-glm::ivec3 Scene::auto_resolution(const SceneDesc& desc, const SceneOptions& opt) {
-  // Total for any input (callers may ask before validating): an axis with
-  // no usable extent gets one voxel.
-  Vec3 ext = desc.bounds_max - desc.bounds_min;
-  for (int a = 0; a < 3; ++a)
-    if (!(ext[a] > 0.0) || !std::isfinite(ext[a])) ext[a] = 1.0;
-  const double target = static_cast<double>(std::max<std::int64_t>(1, opt.auto_voxels));
-  // The cube root of volume / target, in logarithms: the product of three
-  // extents of 1e-100 would underflow (and of three of 1e12 come near
-  // overflow), where each extent alone is fine.
-  double h = std::exp((std::log(ext.x) + std::log(ext.y) + std::log(ext.z) - std::log(target)) / 3.0);
-  glm::ivec3 r{1};
-  // h grows by a quarter a round: a few thousand rounds reach from the
-  // smallest voxel to the largest extent, however unequal the extents.
-  for (int iter = 0; iter < 5000; ++iter) {
-    for (int a = 0; a < 3; ++a)
-      r[a] = clamp_floor(std::round(ext[a] / h), 1, std::max(1, opt.max_resolution));
-    const double n = double(r.x) * r.y * r.z;
-    if (n <= 2.0 * target || (r.x == 1 && r.y == 1 && r.z == 1)) break;
-    h *= 1.25;  // Flat bounds: the cube-root guess overshoots on the long axes.
-  }
-  return r;
-}
-
-namespace {
-
-/// Polls a BuildControl every 2^16 steps of work and keeps the count.
-class BuildMeter {
- public:
-  explicit BuildMeter(const BuildControl* c) : c_(c) {}
-  /// Counts n steps; false once the caller cancelled.
-  bool tick(std::uint64_t n = 1) {
-    steps_ += n;
-    if (steps_ < next_) return true;
-    next_ = steps_ + (std::uint64_t{1} << 16);
-    if (c_ && c_->cancelled && c_->cancelled()) cancelled_ = true;
-    return !cancelled_;
-  }
-  bool cancelled() const { return cancelled_; }
-  std::uint64_t steps() const { return steps_; }
-  std::uint64_t max_bytes() const { return c_ ? c_->max_bytes : 0; }
-
- private:
-  const BuildControl* c_;
-  std::uint64_t steps_ = 0, next_ = 0;
-  bool cancelled_ = false;
-};
-
-std::string mib_text(std::uint64_t bytes) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.1f MiB", static_cast<double>(bytes) / (1024.0 * 1024.0));
-  return buf;
-}
-
-Status build_cancelled() { return Status::Cancelled("scene build cancelled"); }
-
-/// Validates `desc`, chooses the grid and sets up the objects of `s`: every
-/// part of a scene but its grid layers.
-Status prepare(const SceneDesc& desc, const SceneOptions& options, Scene::Impl& s) {
-  if (Status st = validate_desc(desc, options); !st) return st;
-  s.options = options;
-  s.res = desc.grid ? *desc.grid : Scene::auto_resolution(desc, options);
-  if (!desc.grid && std::int64_t{s.res.x} * s.res.y * s.res.z > options.max_voxels)
-    return Status::Exhausted("grid", "automatic resolution exceeds max_voxels");
-  s.spec.res = s.res;
-  s.spec.bounds_min = desc.bounds_min;
-  s.spec.bounds_max = desc.bounds_max;
-  s.spec.voxel_size = (desc.bounds_max - desc.bounds_min) / Vec3(s.res);
-  s.inv_vs = 1.0 / s.spec.voxel_size;
-  s.slop_bounds = std::fmax(max_abs(desc.bounds_min), max_abs(desc.bounds_max));
-  s.pyr = detail::Pyramid::make(s.res);
-  s.cell_base[1] = 0;
-  for (int l = 1; l < detail::kMaxLevels; ++l)
-    s.cell_base[static_cast<std::size_t>(l) + 1] = s.cell_base[static_cast<std::size_t>(l)] + (l < s.pyr.levels ? s.pyr.cells(l) : 0);
-  s.objs.reserve(desc.objects.size());
-  s.slot_of.reserve(desc.objects.size());
-  for (const ObjectDesc& d : desc.objects) {
-    Obj o;
-    o.id = d.id;
-    o.shape = d.shape;
-    o.dynamic = d.dynamic;
-    o.max_speed = d.dynamic ? d.max_speed : 0.0;
-    o.center = d.center;
-    o.radius = d.shape == Shape::Sphere ? d.radius : 0.0;
-    o.half = d.shape == Shape::Sphere ? Vec3(d.radius) : d.half_extent;
-    if (d.shape == Shape::Mesh) {
-      o.mesh = d.mesh;
-      o.mesh_origin = d.center;
-      o.mesh_rotation = unit_rotation(d.rotation);
-      o.mesh_rotation_given = d.rotation;
-      o.mesh_scale = d.scale;
-      o.mesh_centroid = mesh_centroid(*d.mesh);
-      double model = 0.0;
-      for (const Vec3& v : d.mesh->vertices) model = std::fmax(model, max_abs(v));
-      o.mesh_extent = d.scale * std::sqrt(3.0) * model;
-      if (o.dynamic) o.radius = d.scale * mesh_reach(*d.mesh, o.mesh_centroid);
-      s.place_mesh(o);
-    }
-    o.last_move_t = std::numeric_limits<double>::quiet_NaN();
-    if (o.dynamic) {
-      // Voxels its box can touch wherever it goes: one more than its size
-      // in voxels per axis (capped by the grid).
-      double n = 1.0;
-      for (int a = 0; a < 3; ++a)
-        n *= std::fmin(std::ceil(2.0 * o.half[a] * s.inv_vs[a]) + 1.0, static_cast<double>(s.res[a]));
-      o.no_opacity = !(n <= static_cast<double>(detail::kDynOpacityMaxVoxels)) || options.occlusion_buffer > 0 ||
-                     o.shape == Shape::Mesh;
-    }
-    s.slot_of.emplace(o.id, static_cast<std::uint32_t>(s.objs.size()));
-    s.objs.push_back(o);
-    if (o.dynamic) ++s.dynamic_count;
-  }
-  return Status::Ok();
-}
-
-/// A static mesh's vertices placed and mapped to grid coordinates, and how
-/// far a voxel (or brick) is grown for their rounding: the placement's and
-/// the mapping's (slop) allowances, in voxels.
-struct GridMesh {
-  std::vector<Vec3> g;
-  Vec3 grow{0.0};
-  GridMesh(const Scene::Impl& s, const Obj& o) : g(o.mesh->vertices.size()) {
-    const ObjectDesc d = o.mesh_desc();
-    for (std::size_t i = 0; i < g.size(); ++i) g[i] = s.to_grid(place(d, o.mesh->vertices[i]));
-    grow = (o.mesh_allowance() + s.slop(max_abs(o.center) + max_abs(o.half))) * s.inv_vs + 1e-9;
-  }
-};
-
-/// The voxels static mesh `o` touches, from its triangles: each triangle
-/// against the voxels of its own box, by the separating-axis test with the
-/// voxel grown by the rounding allowance of placing and mapping its
-/// vertices (a rounding only adds a voxel the mesh touches within it).
-/// emit(0, voxel) once a voxel, in index order. False when cancelled.
-template <class Emit>
-bool mesh_voxels(const Scene::Impl& s, const Obj& o, BuildMeter& meter, Emit&& emit) {
-  const Mesh& mesh = *o.mesh;
-  const GridMesh gm(s, o);
-  const std::vector<Vec3>& g = gm.g;
-  const Vec3 grow = gm.grow;
-  std::vector<std::int64_t> voxels;
-  for (const auto& t : mesh.triangles) {
-    const Vec3 &a = g[t[0]], &b = g[t[1]], &c = g[t[2]];
-    const Vec3 lo = glm::min(a, glm::min(b, c)) - grow, hi = glm::max(a, glm::max(b, c)) + grow;
-    glm::ivec3 v0, v1;
-    bool empty = false;
-    for (int k = 0; k < 3; ++k) {
-      // Voxel i spans [i, i+1]: it meets [lo, hi] iff ceil(lo) - 1 <= i <= floor(hi).
-      v0[k] = clamp_floor(std::ceil(lo[k]) - 1.0, 0, s.res[k] - 1);
-      v1[k] = clamp_floor(hi[k], -1, s.res[k] - 1);
-      empty = empty || hi[k] < 0.0 || lo[k] > s.res[k];
-    }
-    if (empty) continue;
-    std::uint64_t n = 0;
-    for (int z = v0.z; z <= v1.z; ++z)
-      for (int y = v0.y; y <= v1.y; ++y)
-        for (int x = v0.x; x <= v1.x; ++x) {
-          const Vec3 centre(x + 0.5, y + 0.5, z + 0.5);
-          ++n;
-          if (detail::triangle_meets_box(a, b, c, centre, 0.5 + grow)) voxels.push_back(s.index(x, y, z));
-        }
-    if (!meter.tick(n + 1)) return false;
-  }
-  std::sort(voxels.begin(), voxels.end());
-  voxels.erase(std::unique(voxels.begin(), voxels.end()), voxels.end());
-  for (const std::int64_t i : voxels) {
-    const int x = static_cast<int>(i % s.res.x);
-    const int y = static_cast<int>((i / s.res.x) % s.res.y);
-    const int z = static_cast<int>(i / (std::int64_t{s.res.x} * s.res.y));
-    emit(0, glm::ivec3(x, y, z));
-  }
-  return true;
-}
-
-/// Splits static object `slot` into the cells it is stored in (cells.h):
-/// emit(level, cell). False when cancelled.
-template <class Emit>
-bool static_cells(const Scene::Impl& s, std::uint32_t slot, BuildMeter& meter, Emit&& emit) {
-  const Obj& o = s.objs[slot];
-  if (o.shape == Shape::Mesh) return mesh_voxels(s, o, meter, emit);
-  const double sl = s.slop(max_abs(o.center) + o.radius + max_abs(o.half));
-  const VoxBox vb = s.touch_range(o.box_lo(), o.box_hi(), sl);
-  // A box touches exactly the voxels of its touch range; a ball's touched
-  // voxels are a convex set of it, tested at a cell's corners.
-  const bool ball = o.shape == Shape::Sphere;
-  // Within a brick the surface cuts, a ball's voxels row by row: the voxels
-  // of row (y, z) it touches are those meeting [cx - w, cx + w], w the half
-  // chord left by the row's distance from the centre (touches()'s test,
-  // solved for x; widened, so a rounding only adds a voxel).
-  const Vec3 cg = s.to_grid(o.center);
-  const double rr = o.radius + s.slop(max_abs(o.center) + o.radius + max_abs(o.half));
-  const Vec3& vs = s.spec.voxel_size;
-  auto gap = [&](int a, int i) {
-    const double d = std::fmax(0.0, std::fmax(static_cast<double>(i) - cg[a], cg[a] - static_cast<double>(i + 1)));
-    return d * vs[a];
-  };
-  auto ball_rows = [&](const VoxBox& in) {
-    if (!ball) return false;
-    for (int z = in.lo.z; z <= in.hi.z; ++z) {
-      const double dz = gap(2, z);
-      for (int y = in.lo.y; y <= in.hi.y; ++y) {
-        const double dy = gap(1, y);
-        const double rem = rr * rr - dy * dy - dz * dz;
-        if (!(rem >= 0.0)) continue;
-        const double w = std::sqrt(rem) * (1.0 + 1e-12) * s.inv_vs.x + 1e-9 + 1e-12 * std::fabs(cg.x);
-        const double x0 = std::fmax(std::ceil(cg.x - w) - 1.0, static_cast<double>(in.lo.x));
-        const double x1 = std::fmin(std::floor(cg.x + w), static_cast<double>(in.hi.x));
-        for (double x = x0; x <= x1; x += 1.0) emit(0, glm::ivec3(static_cast<int>(x), y, z));
-      }
-    }
-    return true;
-  };
-  return detail::decompose(
-      s.pyr, 0, vb,
-      [&](const VoxBox& r) {
-        return !ball || detail::corners_pass(r, [&](int x, int y, int z) { return s.touches(o, o.center, x, y, z); });
-      },
-      ball_rows, false, emit, [&](std::uint64_t n) { return meter.tick(n); });
-}
-
-/// Entries (cells of levels >= 1) a dynamic object can hold at most: its
-/// box grown by its largest TBV growth (a TBV replaces the object's own
-/// entries, never adds to them), clamped to the grid.
-std::uint64_t dynamic_entries(const Scene::Impl& s, const Obj& o) {
-  const double period = s.options.tbv_period > 0.0 ? s.options.tbv_period : s.max_period(o);
-  const double grow = 1.5 * o.max_speed * period;  // The period's jitter is below 1.5.
-  const Vec3 lo = glm::max(o.box_lo() - grow, s.spec.bounds_min), hi = glm::min(o.box_hi() + grow, s.spec.bounds_max);
-  const VoxBox vb = s.touch_range(glm::min(lo, o.box_lo()), glm::max(hi, o.box_hi()), s.slop(max_abs(lo) + max_abs(hi)));
-  std::uint64_t n = 0;
-  if (vb.empty()) return 0;
-  detail::decompose(
-      s.pyr, 1, VoxBox{vb.lo >> detail::kBrickShift, vb.hi >> detail::kBrickShift}, [](const VoxBox&) { return true; },
-      [](const VoxBox&) { return false; }, true, [&](int, const glm::ivec3&) { ++n; },
-      [](std::uint64_t) { return true; });
-  return n;
-}
-
-/// What the scene costs with `per_level` static entries, in the terms of
-/// SceneCost; the refusal when it exceeds the meter's limit.
-/// `counted`: objects counted so far (all: the figure is the scene's; fewer:
-/// a lower bound, and a refusal says so).
-/// What meshes add with the buffer on (bytes): the scene's (static meshes'
-/// placed vertices, their triangles' brick entries and the bricks' offsets)
-/// and a worker's (a drawn mark per static triangle, a dynamic mesh's
-/// placed vertices while drawn).
-/// `own`: the meshes' own vertices and triangles (mesh_bytes()).
-struct MeshCost {
-  std::uint64_t bytes = 0, scratch = 0, own = 0;
-};
-
-bool count_triangle_bricks(const Scene::Impl& s, const Obj& o, BuildMeter& meter, std::uint64_t* n);
-
-Status scene_cost(const Scene::Impl& s, const std::array<std::uint64_t, detail::kMaxLevels>& per_level,
-                  std::uint64_t dyn_entries, const BuildMeter& meter, SceneCost* cost, std::size_t counted,
-                  const MeshCost& mesh = {}) {
-  const auto nvox = static_cast<std::uint64_t>(s.spec.voxel_count());
-  const bool buffer = s.options.occlusion_buffer > 0;
-  std::uint64_t entries = 0, offsets = 0;
-  for (int l = 0; l < s.pyr.levels; ++l) {
-    const std::uint64_t e = per_level[static_cast<std::size_t>(l)];
-    entries += e;
-    if (l == 0 || e > 0) offsets += s.pyr.cells(l) + 1;
-  }
-  const std::uint64_t bricks = s.dynamic_count > 0 ? s.pyr.cells(1) : 0;
-  const std::uint64_t coarse = s.dynamic_count > 0 ? s.cell_base[static_cast<std::size_t>(s.pyr.levels)] - bricks : 0;
-  // Opaque boxes are not known before the cover is: about one per brick is
-  // a generous figure for every scene measured.
-  const std::uint64_t boxes = buffer ? s.pyr.cells(1) : 0;
-  cost->res = s.res;
-  cost->id_entries = entries + dyn_entries;
-  const std::uint64_t cells = s.cell_base[static_cast<std::size_t>(s.pyr.levels)];
-  const std::uint64_t objects = s.objs.size(), dynamic = s.dynamic_count;
-  // Per voxel: flags (1), the opaque boxes' owners (4, buffer on); CSR
-  // offsets and entries (4 each); per brick its dynamic list head, seen
-  // time and mask; per coarser cell a list head; each object's state and
-  // index entry; with the buffer on, the per-brick lists (at most the
-  // voxels' own entries and one box per brick); per cell of levels >= 1 its
-  // static mask (8), with dynamic objects its dynamic count and mask (12) —
-  // masks and counts with the buffer only — and, from level 2, the time it
-  // was last seen whole (8), and at level 2 the time anything in it was
-  // seen (8).
-  //
-  // The dynamic lists: a cell drops its stale entries only once they are
-  // 16 more than twice its live ones (scene.cpp, brick_add), and a list
-  // grows by doubling, so a cell that ever held one entry keeps up to 16
-  // (128 bytes), and one that held L >= 2 at once up to 192 + 32 L bytes:
-  // 128 bytes a dynamic cell (bricks and coarser) and 64 a dynamic entry.
-  // Per dynamic object, its entries in the TBV expiry queue (a live one and
-  // a stale one) and the reveal, unclaimed and wake queues, doubled by
-  // their growth: 64 bytes.
-  cost->bytes = nvox * (1 + (buffer ? 4 : 0)) + 4 * (offsets + entries) + boxes * sizeof(VoxBox) +
-                bricks * (sizeof(detail::Brick) + 16) + coarse * (sizeof(detail::Brick) + 8) +
-                (bricks > 0 && s.pyr.levels > 2 ? 8 * s.pyr.cells(2) : 0) + 128 * (bricks + coarse) +
-                64 * dyn_entries + 64 * dynamic + (buffer ? 8 * cells + (bricks > 0 ? 12 * cells : 0) : 0) +
-                (buffer ? 4 * (per_level[0] + 2 * (s.pyr.cells(1) + 1)) + 4 * boxes : 0) +
-                objects * (sizeof(Obj) + 48) + mesh.bytes + mesh.own + (1u << 16);
-  // A worker's scratch: the voxel traversal's stamps (a byte a voxel, the
-  // buffer off); per object a PVS mark and a frustum mark (8) and its place
-  // in the PVS (4, doubled by the list's growth); per dynamic object its
-  // places in the frame's reveals and deferred TBVs (8, doubled); per box
-  // and per cell a mark (4); with dynamic objects, per brick the voxels a
-  // frame saw (8) and its place in their list (4, doubled), per coarser
-  // cell its place in the cells seen whole (8, doubled).
-  cost->scratch_bytes = (buffer ? 0 : nvox) + 16 * objects + 16 * dynamic + 4 * boxes + 4 * cells +
-                        16 * bricks + 16 * coarse + mesh.scratch;
-  cost->work = meter.steps() + nvox * 2;
-  if (meter.max_bytes() > 0 && cost->bytes > meter.max_bytes()) {
-    const std::string grid = std::to_string(s.res.x) + "x" + std::to_string(s.res.y) + "x" + std::to_string(s.res.z);
-    if (counted == 0 && !s.objs.empty())
-      return Status::Exhausted("memory", "the grid " + grid + " alone needs about " + mib_text(cost->bytes) +
-                                             ", over the limit of " + mib_text(meter.max_bytes()));
-    const std::string what =
-        counted < s.objs.size()
-            ? "at least " + mib_text(cost->bytes) + " (" + std::to_string(cost->id_entries) +
-                  " id-list entries from its first " + std::to_string(counted) + " of " +
-                  std::to_string(s.objs.size()) + " objects, grid " + grid + ")"
-            : "about " + mib_text(cost->bytes) + " (" + std::to_string(cost->id_entries) + " id-list entries, grid " +
-                  grid + (mesh.own > 0 ? ", meshes " + mib_text(mesh.own) : std::string()) + ")";
-    return Status::Exhausted("memory", "the scene needs " + what + ", over the limit of " + mib_text(meter.max_bytes()));
-  }
-  for (std::uint64_t e : per_level)
-    if (e > std::numeric_limits<std::uint32_t>::max() - 1)
-      return Status::Exhausted("grid", "static objects fill more than 2^32 cells of one level; choose a coarser grid");
-  return Status::Ok();
-}
-
-using LevelCounts = std::array<std::uint64_t, detail::kMaxLevels>;
-
-/// Counts every static object's cells per level (no allocation), then the
-/// dynamic objects' most entries, and what the scene costs.
-/// The bytes of the scene's meshes, each counted once however many objects
-/// place it (the objects share it): vertices, triangles and the vectors'
-/// bookkeeping. A mesh is kept as given, so that is what it costs.
-std::uint64_t mesh_bytes(const Scene::Impl& s) {
-  std::uint64_t bytes = 0;
-  std::vector<const Mesh*> seen;
-  for (const Obj& o : s.objs)
-    if (o.mesh) seen.push_back(o.mesh.get());
-  std::sort(seen.begin(), seen.end());
-  seen.erase(std::unique(seen.begin(), seen.end()), seen.end());
-  for (const Mesh* m : seen)
-    bytes += m->vertices.size() * sizeof(Vec3) + m->triangles.size() * sizeof(m->triangles[0]) + sizeof(Mesh) + 64;
-  return bytes;
-}
-
-Status count_cost(const Scene::Impl& s, BuildMeter& meter, SceneCost* cost, LevelCounts* counts = nullptr) {
-  LevelCounts per_level{};
-  std::uint64_t dyn = 0;
-  MeshCost mesh;
-  const bool buffer = s.options.occlusion_buffer > 0;
-  std::uint64_t widest = 0;  // Vertices of the largest dynamic mesh.
-  // The grid alone may be over the limit: refused before any object is looked at.
-  if (Status st = scene_cost(s, per_level, 0, meter, cost, 0); !st) return st;
-  mesh.own = mesh_bytes(s);
-  for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
-    const Obj& o = s.objs[slot];
-    if (o.dynamic) {
-      dyn += dynamic_entries(s, o);
-      if (o.shape == Shape::Mesh && buffer) {
-        // The quad pairing, and the interior's cubes and boxes (if closed).
-        const double side = std::fmin(s.spec.voxel_size.x, std::fmin(s.spec.voxel_size.y, s.spec.voxel_size.z));
-        const glm::ivec3 n = detail::model_interior_cubes(*o.mesh, side / o.mesh_scale);
-        const std::uint64_t cubes = std::uint64_t(n.x) * std::uint64_t(n.y) * std::uint64_t(n.z);
-        mesh.bytes += 20 * o.mesh->triangles.size() + cubes + 8 * cubes / 4 + 256;
-      }
-      if (o.shape == Shape::Mesh && buffer && o.mesh->vertices.size() > widest) {
-        mesh.scratch += 24 * (o.mesh->vertices.size() - widest);
-        widest = o.mesh->vertices.size();
-      }
-      if (!meter.tick(8)) return build_cancelled();
-      continue;
-    }
-    if (!static_cells(s, slot, meter, [&](int l, const glm::ivec3&) { ++per_level[static_cast<std::size_t>(l)]; }))
-      return build_cancelled();
-    if (o.shape == Shape::Mesh && buffer) {
-      std::uint64_t entries = 0;
-      if (!count_triangle_bricks(s, o, meter, &entries)) return build_cancelled();
-      if (mesh.bytes == 0) mesh.bytes = 4 * (s.pyr.cells(1) + 1);
-      // Placed vertices, brick entries, the quad pairing (per triangle).
-      mesh.bytes += 24 * o.mesh->vertices.size() + sizeof(detail::TriRef) * entries + 20 * o.mesh->triangles.size();
-      mesh.scratch += 4 * o.mesh->triangles.size();
-    }
-    // Stop as soon as the limit is passed: the count costs no more than
-    // the budget it is checked against.
-    if (Status st = scene_cost(s, per_level, dyn, meter, cost, slot + 1, mesh); !st) return st;
-  }
-  if (counts) *counts = per_level;
-  return scene_cost(s, per_level, dyn, meter, cost, s.objs.size(), mesh);
-}
 
 /// Builds the static id lists from the counts per level: a pass over the
 /// objects counts each cell's entries, another fills them (no buffer of
-/// pairs: the peak stays the lists' own size).
+/// pairs: the peak stays the lists' own size). Level 0's count from the
+/// estimate is a bound for meshes: the lists are sized by the first pass.
 Status build_static_lists(Scene::Impl& s, BuildMeter& meter, const LevelCounts& per_level) {
   for (int l = 0; l < s.pyr.levels; ++l) {
     detail::IdLists& lists = s.static_lists[static_cast<std::size_t>(l)];
     if (l == 0 || per_level[static_cast<std::size_t>(l)] > 0) lists.offsets.assign(s.pyr.cells(l) + 1, 0);
-    lists.ids.resize(static_cast<std::size_t>(per_level[static_cast<std::size_t>(l)]));
   }
   for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
     if (s.objs[slot].dynamic) continue;
     if (!static_cells(s, slot, meter, [&](int l, const glm::ivec3& c) {
           ++s.static_lists[static_cast<std::size_t>(l)].offsets[s.pyr.index(l, c) + 1];
         }))
-      return build_cancelled();
+      return meter.stopped();
   }
   for (int l = 0; l < s.pyr.levels; ++l) {
-    std::vector<std::uint32_t>& off = s.static_lists[static_cast<std::size_t>(l)].offsets;
-    for (std::size_t i = 1; i < off.size(); ++i) off[i] += off[i - 1];
+    detail::IdLists& lists = s.static_lists[static_cast<std::size_t>(l)];
+    std::vector<std::uint32_t>& off = lists.offsets;
+    std::uint64_t total = 0;
+    for (std::size_t i = 1; i < off.size(); ++i) {
+      total += off[i];
+      if (total > std::numeric_limits<std::uint32_t>::max() - 1)
+        return Status::Exhausted("grid", "static objects fill more than 2^32 cells of one level; choose a coarser grid");
+      off[i] = static_cast<std::uint32_t>(total);
+    }
+    if (!meter.charge(4 * total)) return meter.stopped();
+    lists.ids.resize(static_cast<std::size_t>(total));
   }
   // Fill, advancing each cell's start; then shift the starts back.
   for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
@@ -576,7 +69,7 @@ Status build_static_lists(Scene::Impl& s, BuildMeter& meter, const LevelCounts& 
           detail::IdLists& lists = s.static_lists[static_cast<std::size_t>(l)];
           lists.ids[lists.offsets[s.pyr.index(l, c)]++] = slot;
         }))
-      return build_cancelled();
+      return meter.stopped();
     if (!s.box_inside_grid(o.box_lo(), o.box_hi())) s.list_add(s.outside_objs, s.objs[slot].outside_pos, slot);
   }
   for (int l = 0; l < s.pyr.levels; ++l) {
@@ -732,43 +225,25 @@ void build_brick_lists(Scene::Impl& s) {
 template <class Emit>
 bool mesh_triangle_bricks(const Scene::Impl& s, const Obj& o, BuildMeter& meter, Emit&& emit) {
   const int side = 1 << detail::kBrickShift;
-  const glm::ivec3 bres = s.pyr.res[1];
   const Mesh& mesh = *o.mesh;
   const GridMesh gm(s, o);
-  const std::vector<Vec3>& g = gm.g;
-  {
-    const Vec3 grow = gm.grow;
-    const Vec3 half = Vec3(0.5 * side) + grow;
-    for (std::uint32_t t = 0; t < mesh.triangles.size(); ++t) {
-      const auto& tri = mesh.triangles[t];
-      const Vec3 &a = g[tri[0]], &b = g[tri[1]], &c = g[tri[2]];
-      const Vec3 lo = glm::min(a, glm::min(b, c)) - grow, hi = glm::max(a, glm::max(b, c)) + grow;
-      glm::ivec3 b0, b1;
-      bool empty = false;
-      for (int k = 0; k < 3; ++k) {
-        // Brick i spans [side i, side (i+1)].
-        b0[k] = clamp_floor(std::ceil(lo[k] / side) - 1.0, 0, bres[k] - 1);
-        b1[k] = clamp_floor(hi[k] / side, -1, bres[k] - 1);
-        empty = empty || hi[k] < 0.0 || lo[k] > s.res[k];
-      }
-      if (empty) continue;
-      std::uint64_t n = 0;
-      for (int z = b0.z; z <= b1.z; ++z)
-        for (int y = b0.y; y <= b1.y; ++y)
-          for (int x = b0.x; x <= b1.x; ++x) {
-            ++n;
-            const Vec3 centre = (Vec3(x, y, z) + 0.5) * static_cast<double>(side);
-            if (detail::triangle_meets_box(a, b, c, centre, half)) emit(s.pyr.index(1, glm::ivec3(x, y, z)), t);
-          }
-      if (!meter.tick(n + 1)) return false;
-    }
+  const Vec3 half = Vec3(0.5 * side) + gm.grow;
+  for (std::uint32_t t = 0; t < mesh.triangles.size(); ++t) {
+    const auto& tri = mesh.triangles[t];
+    glm::ivec3 b0, b1;
+    if (!gm.cell_range(tri, side, s.res, &b0, &b1)) continue;
+    const Vec3 &a = gm.g[tri[0]], &b = gm.g[tri[1]], &c = gm.g[tri[2]];
+    std::uint64_t n = 0;
+    for (int z = b0.z; z <= b1.z; ++z)
+      for (int y = b0.y; y <= b1.y; ++y)
+        for (int x = b0.x; x <= b1.x; ++x) {
+          ++n;
+          const Vec3 centre = (Vec3(x, y, z) + 0.5) * static_cast<double>(side);
+          if (detail::triangle_meets_box(a, b, c, centre, half)) emit(s.pyr.index(1, glm::ivec3(x, y, z)), t);
+        }
+    if (!meter.tick(n + 1)) return false;
   }
   return true;
-}
-
-/// The entries mesh_triangle_bricks makes for static mesh `o`.
-bool count_triangle_bricks(const Scene::Impl& s, const Obj& o, BuildMeter& meter, std::uint64_t* n) {
-  return mesh_triangle_bricks(s, o, meter, [&](std::size_t, std::uint32_t) { ++*n; });
 }
 
 /// The interiors of closed static meshes, with the buffer on: every voxel
@@ -777,8 +252,10 @@ bool count_triangle_bricks(const Scene::Impl& s, const Obj& o, BuildMeter& meter
 /// voxel of a closed mesh's range that OpenVDB puts inside and that no
 /// closed mesh touches gets kMeshInside (mesh_interior.h). Those voxels are
 /// covered with boxes appended to opaque_boxes and listed per brick
-/// (brick_mesh_boxes). Needs pair_mesh_triangles first (Obj::outward).
-Status build_mesh_interiors(Scene::Impl& s, BuildMeter& meter) {
+/// (brick_mesh_boxes). Needs pair_mesh_triangles first (Obj::outward). A
+/// mesh whose level set would be too large (interior_level_set) gets none; each
+/// level set is charged while it lives, the boxes as they are kept.
+Status build_mesh_interiors(Scene::Impl& s, BuildMeter& meter, const BuildControl* control) {
   std::vector<std::uint32_t> meshes;
   for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
     const Obj& o = s.objs[slot];
@@ -789,29 +266,39 @@ Status build_mesh_interiors(Scene::Impl& s, BuildMeter& meter) {
     if (!mesh_voxels(s, o, meter, [&](int, const glm::ivec3& v) {
           s.vflags[static_cast<std::size_t>(s.index(v.x, v.y, v.z))] |= Scene::Impl::kMeshTouched;
         }))
-      return build_cancelled();
+      return meter.stopped();
   }
   bool any = false;
+  const detail::BuildStop stop{control ? control->cancelled : std::function<bool()>(), {}};
   for (const std::uint32_t slot : meshes) {
     const Obj& o = s.objs[slot];
+    std::uint64_t level_set = 0;
+    if (!interior_level_set(s, o, meter, &level_set)) return build_cancelled();
+    if (level_set == 0) continue;
+    if (!meter.charge(level_set)) return meter.stopped();
     const GridMesh gm(s, o);
     const VoxBox range = s.touch_range(o.box_lo(), o.box_hi(), s.slop(max_abs(o.center) + max_abs(o.half)));
-    detail::inside_voxel_centres(gm.g, *o.mesh, range, [&](int x, int y, int z) {
+    const bool done = detail::inside_voxel_centres(gm.g, *o.mesh, range, stop, [&](int x, int y, int z) {
       std::uint8_t& f = s.vflags[static_cast<std::size_t>(s.index(x, y, z))];
       if (!(f & Scene::Impl::kMeshTouched)) {
         f |= Scene::Impl::kMeshInside;
         any = true;
       }
     });
+    meter.release(level_set);
     const glm::ivec3 n = range.empty() ? glm::ivec3(0) : range.hi - range.lo + 1;
-    if (!meter.tick(static_cast<std::uint64_t>(n.x) * static_cast<std::uint64_t>(n.y) * static_cast<std::uint64_t>(n.z) +
-                    4 * o.mesh->triangles.size()))
+    if (!done || !meter.tick(static_cast<std::uint64_t>(n.x) * static_cast<std::uint64_t>(n.y) *
+                                 static_cast<std::uint64_t>(n.z) +
+                             4 * o.mesh->triangles.size()))
       return build_cancelled();
   }
   if (!any) return Status::Ok();
   std::vector<detail::VoxBox> boxes;
   std::vector<std::uint32_t> owner;
+  const std::uint64_t owners = 4 * static_cast<std::uint64_t>(s.spec.voxel_count());
+  if (!meter.charge(owners)) return meter.stopped();
   detail::cover_with_boxes(s.res, s.vflags, Scene::Impl::kMeshInside, kOpaqueBoxSide, &boxes, &owner);
+  if (!meter.charge(boxes.size() * sizeof(detail::VoxBox))) return meter.stopped();
   const auto first = static_cast<std::uint32_t>(s.opaque_boxes.size());
   s.opaque_boxes.insert(s.opaque_boxes.end(), boxes.begin(), boxes.end());
   // Per brick, the boxes owning its interior voxels, each once.
@@ -836,12 +323,16 @@ Status build_mesh_interiors(Scene::Impl& s, BuildMeter& meter) {
             }
         lists.offsets.push_back(static_cast<std::uint32_t>(lists.ids.size()));
       }
+  meter.release(owners);
+  if (!meter.charge(4 * (lists.ids.size() + lists.offsets.size()))) return meter.stopped();
   return Status::Ok();
 }
 
 /// Pairs every mesh's triangles into quads (Obj::quads) and finds whether
-/// it is closed and which way it runs (Obj::outward), once a mesh.
-void pair_mesh_triangles(Scene::Impl& s, BuildMeter& meter) {
+/// it is closed and which way it runs (Obj::outward), once a mesh; then the
+/// interiors of closed dynamic meshes. Each mesh's temporaries are charged
+/// while they live (build_cost.cpp's figures), what is kept as it is.
+Status pair_mesh_triangles(Scene::Impl& s, BuildMeter& meter, const BuildControl* control) {
   struct Done {
     std::shared_ptr<const detail::MeshQuads> quads;
     std::int8_t outward = 0;
@@ -852,6 +343,8 @@ void pair_mesh_triangles(Scene::Impl& s, BuildMeter& meter) {
     auto [it, fresh] = done.try_emplace(o.mesh.get());
     if (fresh) {
       const Mesh& m = *o.mesh;
+      const std::uint64_t temporary = kPairBuildBytes * m.triangles.size();
+      if (!meter.charge(temporary + kPairKeptBytes * m.triangles.size())) return meter.stopped();
       it->second.quads = std::make_shared<const detail::MeshQuads>(detail::pair_triangles(m));
       if (detail::mesh_closed(m)) {
         // Six times the signed volume (divergence theorem), about the
@@ -862,7 +355,8 @@ void pair_mesh_triangles(Scene::Impl& s, BuildMeter& meter) {
           vol += glm::dot(m.vertices[t[0]] - c, glm::cross(m.vertices[t[1]] - c, m.vertices[t[2]] - c));
         it->second.outward = vol > 0.0 ? 1 : vol < 0.0 ? -1 : 0;
       }
-      meter.tick(8 * m.triangles.size() + 1);
+      meter.release(temporary);
+      if (!meter.tick(8 * m.triangles.size() + 1)) return build_cancelled();
     }
     o.quads = it->second.quads;
     o.outward = it->second.outward;
@@ -872,6 +366,8 @@ void pair_mesh_triangles(Scene::Impl& s, BuildMeter& meter) {
   // grid's least voxel side (in model units), once per mesh and side.
   std::map<std::pair<const Mesh*, double>, std::shared_ptr<const detail::ModelInterior>> interiors;
   const double side = std::fmin(s.spec.voxel_size.x, std::fmin(s.spec.voxel_size.y, s.spec.voxel_size.z));
+  const detail::BuildStop stop{control ? control->cancelled : std::function<bool()>(),
+                               [&meter](std::uint64_t n) { return meter.tick(n); }};
   for (Obj& o : s.objs) {
     if (!o.dynamic || o.shape != Shape::Mesh || o.outward == 0) continue;
     const double h = side / o.mesh_scale;
@@ -879,11 +375,20 @@ void pair_mesh_triangles(Scene::Impl& s, BuildMeter& meter) {
     if (!in) {
       double model = 0.0;
       for (const Vec3& v : o.mesh->vertices) model = std::fmax(model, max_abs(v));
-      in = std::make_shared<const detail::ModelInterior>(detail::model_interior(*o.mesh, h, 1e-9 * model));
-      meter.tick(8 * o.mesh->triangles.size() + 1);
+      const glm::ivec3 n = detail::model_interior_cubes(*o.mesh, h);
+      const std::uint64_t cubes = std::uint64_t(n.x) * std::uint64_t(n.y) * std::uint64_t(n.z);
+      const std::uint64_t level_set = model_level_set_bytes(n);
+      if (!meter.charge(level_set + cubes)) return meter.stopped();
+      auto built = std::make_shared<detail::ModelInterior>();
+      const bool finished = detail::model_interior(*o.mesh, h, 1e-9 * model, stop, built.get());
+      meter.release(level_set);
+      if (!finished) return build_cancelled();
+      if (!meter.charge(built->boxes.size() * sizeof(detail::ModelInterior::Box))) return meter.stopped();
+      in = std::move(built);
     }
     if (!in->boxes.empty()) o.interior = in;
   }
+  return Status::Ok();
 }
 
 /// The static mesh triangles of each brick (Scene::Impl::brick_tris), for
@@ -908,10 +413,11 @@ Status build_brick_triangles(Scene::Impl& s, BuildMeter& meter) {
           ++off[b + 1];
           ++entries;
         }))
-      return build_cancelled();
+      return meter.stopped();
   if (entries > std::numeric_limits<std::uint32_t>::max())
     return Status::Exhausted("grid", "static mesh triangles meet more than 2^32 bricks in all; choose a coarser grid");
   for (std::size_t i = 1; i < off.size(); ++i) off[i] += off[i - 1];
+  if (!meter.charge(sizeof(detail::TriRef) * entries + 4 * off.size())) return meter.stopped();
   s.brick_tris.resize(static_cast<std::size_t>(entries));
   std::vector<std::uint32_t> next(off.begin(), off.end() - 1);
   for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
@@ -922,6 +428,7 @@ Status build_brick_triangles(Scene::Impl& s, BuildMeter& meter) {
         }))
       return build_cancelled();
     // The vertices the buffer draws, placed as the bricks were found.
+    if (!meter.charge(sizeof(Vec3) * o.mesh->vertices.size())) return meter.stopped();
     const ObjectDesc d = o.mesh_desc();
     o.placed.resize(o.mesh->vertices.size());
     for (std::size_t i = 0; i < o.placed.size(); ++i) o.placed[i] = place(d, o.mesh->vertices[i]);
@@ -929,37 +436,10 @@ Status build_brick_triangles(Scene::Impl& s, BuildMeter& meter) {
   return Status::Ok();
 }
 
-}  // namespace
-
-Status Scene::estimate(const SceneDesc& desc, const SceneOptions& options, SceneCost* out,
-                       const BuildControl* control) {
-  Impl s;
-  if (Status st = prepare(desc, options, s); !st) return st;
-  BuildMeter meter(control);
-  SceneCost cost;
-  if (Status st = count_cost(s, meter, &cost); !st) return st;
-  *out = cost;
-  return Status::Ok();
-}
-
-Status Scene::create(const SceneDesc& desc, const SceneOptions& options, std::unique_ptr<Scene>* out,
-                     const BuildControl* control) {
-  auto impl = std::make_unique<Impl>();
-  Impl& s = *impl;
-  if (Status st = prepare(desc, options, s); !st) return st;
-  BuildMeter meter(control);
-  LevelCounts per_level{};
-  {
-    // Refused before the grid's layers are allocated.
-    SceneCost cost;
-    if (Status st = count_cost(s, meter, &cost, &per_level); !st) return st;
-  }
-  const std::size_t nvox = static_cast<std::size_t>(s.spec.voxel_count());
-  s.vflags.assign(nvox, 0);
-  if (Status st = build_static_lists(s, meter, per_level); !st) return st;
-
-  // Static cover, once: from every static object touching the voxel (its
-  // own list, then the coarser cells', kCoverCandidates at most).
+/// The static cover, once: a voxel is opaque when the static objects
+/// touching it (its own list, then the coarser cells', kCoverCandidates at
+/// most) cover it whole.
+Status build_static_cover(Scene::Impl& s, BuildMeter& meter) {
   const detail::IdLists& own = s.static_lists[0];
   for (int z = 0; z < s.res.z; ++z)
     for (int y = 0; y < s.res.y; ++y) {
@@ -967,63 +447,107 @@ Status Scene::create(const SceneDesc& desc, const SceneOptions& options, std::un
       for (int x = 0; x < s.res.x; ++x) {
         const auto i = static_cast<std::size_t>(s.index(x, y, z));
         const std::uint8_t f = s.vflags[i];
-        if ((f & (Impl::kStaticIds | Impl::kCoarseIds)) == 0) continue;
+        if ((f & (Scene::Impl::kStaticIds | Scene::Impl::kCoarseIds)) == 0) continue;
         std::uint32_t slots[detail::kCoverCandidates];
         const std::uint32_t* first = own.begin(i);
         auto n = static_cast<std::size_t>(own.end(i) - first);
-        if (f & Impl::kCoarseIds) {
+        if (f & Scene::Impl::kCoarseIds) {
           std::size_t k = 0;
           for (const std::uint32_t* p = own.begin(i); p != own.end(i) && k < std::size(slots); ++p) slots[k++] = *p;
           s.coarse_static(x, y, z, slots, &k, std::size(slots));
           first = slots, n = k;
         }
         if (!s.union_covers(first, n, x, y, z)) continue;
-        s.vflags[i] |= Impl::kStaticOpaque;
-        if (s.in_one_ball(first, n, x, y, z)) s.vflags[i] |= Impl::kInOneBall;
+        s.vflags[i] |= Scene::Impl::kStaticOpaque;
+        if (s.in_one_ball(first, n, x, y, z)) s.vflags[i] |= Scene::Impl::kInOneBall;
       }
     }
-  if (s.options.occlusion_buffer > 0) {
-    detail::cover_with_boxes(s.res, s.vflags, Impl::kStaticOpaque, kOpaqueBoxSide, &s.opaque_boxes,
-                             &s.opaque_owner);
-    pair_mesh_triangles(s, meter);
-    if (Status st = build_mesh_interiors(s, meter); !st) return st;
-  }
-  // The cell traversal's summaries: only the buffer's traversal reads them.
-  const bool cells = s.options.occlusion_buffer > 0;
-  if (cells) {
-    build_static_masks(s);
-    build_brick_lists(s);
-    if (Status st = build_brick_triangles(s, meter); !st) return st;
-  }
+  return Status::Ok();
+}
 
-  if (s.dynamic_count > 0) {
-    s.bricks_res = s.pyr.res[1];
-    s.bricks.resize(s.pyr.cells(1));
-    for (int l = 2; l < s.pyr.levels; ++l) s.coarse_dyn[static_cast<std::size_t>(l)].resize(s.pyr.cells(l));
-    for (int l = 1; cells && l < s.pyr.levels; ++l) {
-      s.dyn_count[static_cast<std::size_t>(l)].assign(s.pyr.cells(l), 0);
-      s.dyn_mask[static_cast<std::size_t>(l)].assign(s.pyr.cells(l), 0);
-    }
-    s.seen_at.assign(s.bricks.size(), -std::numeric_limits<double>::infinity());
-    s.seen_mask.assign(s.bricks.size(), 0);
-    for (int l = 2; l < s.pyr.levels; ++l)
-      s.cell_seen_at[static_cast<std::size_t>(l)].assign(s.pyr.cells(l), -std::numeric_limits<double>::infinity());
-    if (s.pyr.levels > 2) s.cell_any_seen_at.assign(s.pyr.cells(2), -std::numeric_limits<double>::infinity());
-    // Until a viewer has looked, every object may be visible: discretize all
-    // dynamic objects now; those no viewer claims get TBVs after a frame.
-    for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
-      Obj& o = s.objs[slot];
-      if (!o.dynamic) continue;
-      if (!meter.tick(64)) return build_cancelled();
-      o.tbv_period = s.initial_period(o);
-      s.discretize(slot);
-      o.pending_unclaimed = true;
-      s.unclaimed.push_back(slot);
-    }
-    s.pending = FrameStats{};
+/// The occlusion buffer's occluders (buffer on): opaque voxels covered with
+/// boxes, meshes' quads and closedness, closed meshes' interiors.
+Status build_occluders(Scene::Impl& s, BuildMeter& meter, const BuildControl* control) {
+  detail::cover_with_boxes(s.res, s.vflags, Scene::Impl::kStaticOpaque, kOpaqueBoxSide, &s.opaque_boxes,
+                           &s.opaque_owner);
+  if (!meter.charge(s.opaque_boxes.size() * sizeof(detail::VoxBox))) return meter.stopped();
+  if (Status st = pair_mesh_triangles(s, meter, control); !st) return st;
+  return build_mesh_interiors(s, meter, control);
+}
+
+/// The cell traversal's summaries (buffer on: only its traversal reads
+/// them): static masks, per-brick lists, per-brick mesh triangles.
+Status build_cell_summaries(Scene::Impl& s, BuildMeter& meter) {
+  build_static_masks(s);
+  // The lists' marks (an object's and a box's last brick) while they are made.
+  const std::uint64_t marks = 4 * (s.objs.size() + s.opaque_boxes.size());
+  if (!meter.charge(marks)) return meter.stopped();
+  build_brick_lists(s);
+  meter.release(marks);
+  if (!meter.charge(4 * (s.brick_static.ids.size() + s.brick_boxes.ids.size()))) return meter.stopped();
+  return build_brick_triangles(s, meter);
+}
+
+/// The dynamic objects' cells, seen times and queues, and every dynamic
+/// object discretized: until a viewer has looked, every object may be
+/// visible; those no viewer claims get TBVs after a frame.
+Status build_dynamic(Scene::Impl& s, BuildMeter& meter) {
+  const bool cells = s.options.occlusion_buffer > 0;
+  s.bricks_res = s.pyr.res[1];
+  s.bricks.resize(s.pyr.cells(1));
+  for (int l = 2; l < s.pyr.levels; ++l) s.coarse_dyn[static_cast<std::size_t>(l)].resize(s.pyr.cells(l));
+  for (int l = 1; cells && l < s.pyr.levels; ++l) {
+    s.dyn_count[static_cast<std::size_t>(l)].assign(s.pyr.cells(l), 0);
+    s.dyn_mask[static_cast<std::size_t>(l)].assign(s.pyr.cells(l), 0);
   }
+  s.seen_at.assign(s.bricks.size(), -std::numeric_limits<double>::infinity());
+  s.seen_mask.assign(s.bricks.size(), 0);
+  for (int l = 2; l < s.pyr.levels; ++l)
+    s.cell_seen_at[static_cast<std::size_t>(l)].assign(s.pyr.cells(l), -std::numeric_limits<double>::infinity());
+  if (s.pyr.levels > 2) s.cell_any_seen_at.assign(s.pyr.cells(2), -std::numeric_limits<double>::infinity());
+  for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
+    detail::Obj& o = s.objs[slot];
+    if (!o.dynamic) continue;
+    if (!meter.tick(64)) return build_cancelled();
+    o.tbv_period = s.initial_period(o);
+    s.discretize(slot);
+    o.pending_unclaimed = true;
+    s.unclaimed.push_back(slot);
+  }
+  s.pending = FrameStats{};
+  return Status::Ok();
+}
+
+}  // namespace
+}  // namespace build
+
+Status Scene::create(const SceneDesc& desc, const SceneOptions& options, std::unique_ptr<Scene>* out,
+                     const BuildControl* control) {
+  auto impl = std::make_unique<Impl>();
+  Impl& s = *impl;
+  build::BuildMeter meter(control);
+  if (Status st = build::prepare(desc, options, s, meter); !st) return st;
+  build::LevelCounts per_level{};
+  {
+    // Refused before the grid's layers are allocated.
+    SceneCost cost;
+    if (Status st = build::count_cost(s, meter, &cost, &per_level); !st) return st;
+  }
+  if (!meter.charge(build::grid_bytes(s) + build::mesh_bytes(s))) return meter.stopped();
+  s.vflags.assign(static_cast<std::size_t>(s.spec.voxel_count()), 0);
+  if (Status st = build::build_static_lists(s, meter, per_level); !st) return st;
+  if (Status st = build::build_static_cover(s, meter); !st) return st;
+  if (s.options.occlusion_buffer > 0) {
+    if (Status st = build::build_occluders(s, meter, control); !st) return st;
+    if (Status st = build::build_cell_summaries(s, meter); !st) return st;
+  }
+  if (s.dynamic_count > 0)
+    if (Status st = build::build_dynamic(s, meter); !st) return st;
+  s.built_bytes = meter.charged();
   out->reset(new Scene(std::move(impl)));
   return Status::Ok();
 }
+
+std::uint64_t Scene::built_bytes() const { return impl_->built_bytes; }
 
 }  // namespace voxvis

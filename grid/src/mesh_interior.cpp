@@ -4,6 +4,7 @@
 #include "opaque_boxes.h"
 #include "tri_box.h"
 
+#include <atomic>
 #include <cstdint>
 #include <mutex>
 #include <limits>
@@ -14,6 +15,8 @@
 
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/MeshToVolume.h>
+#include <openvdb/util/NullInterrupter.h>
+#include <tbb/task_arena.h>
 
 namespace voxvis::detail {
 
@@ -53,14 +56,34 @@ bool mesh_closed(const Mesh& mesh) {
 
 namespace {
 
-openvdb::FloatGrid::Ptr level_set(const std::vector<Vec3>& g, const Mesh& mesh) {
+/// Asks the build's control whether to stop, from OpenVDB's threads.
+struct Interrupter final : openvdb::util::NullInterrupter {
+  const std::function<bool()>* stop;
+  std::atomic<bool> stopped{false};
+  explicit Interrupter(const std::function<bool()>* s) : stop(s) {}
+  bool wasInterrupted(int = -1) override {
+    if (!stopped.load(std::memory_order_relaxed) && stop != nullptr && *stop && (*stop)())
+      stopped.store(true, std::memory_order_relaxed);
+    return stopped.load(std::memory_order_relaxed);
+  }
+};
+
+/// The level set, or null when `stop` said to stop (the conversion's
+/// partial grid is not used). On the calling thread alone: a build runs
+/// beside the frames of the scenes already served, at a lower priority,
+/// and OpenVDB's worker threads would take every core at the normal one.
+openvdb::FloatGrid::Ptr level_set(const std::vector<Vec3>& g, const Mesh& mesh, const std::function<bool()>* stop) {
   static std::once_flag init;
   std::call_once(init, [] { openvdb::initialize(); });
   const IndexSpaceMesh adapter{g, mesh};
   const openvdb::math::Transform::Ptr xform = openvdb::math::Transform::createLinearTransform(1.0);
+  Interrupter interrupter(stop);
+  openvdb::FloatGrid::Ptr sdf;
+  tbb::task_arena one(1);
   // A narrow band of three voxels each side (the default): the sign of
   // every value, inside the band or not, is the region's.
-  return openvdb::tools::meshToVolume<openvdb::FloatGrid>(adapter, *xform, 3.0f, 3.0f);
+  one.execute([&] { sdf = openvdb::tools::meshToVolume<openvdb::FloatGrid>(interrupter, adapter, *xform, 3.0f, 3.0f); });
+  return interrupter.stopped.load() ? nullptr : sdf;
 }
 
 /// The layout of model_interior: false when the mesh or h cannot have one.
@@ -83,9 +106,10 @@ glm::ivec3 model_interior_cubes(const Mesh& mesh, double h) {
   return layout(mesh, &h, &lo, &n) ? n : glm::ivec3(0);
 }
 
-ModelInterior model_interior(const Mesh& mesh, double h, double grow) {
-  ModelInterior out;
-  if (!layout(mesh, &h, &out.lo, &out.n)) return out;
+bool model_interior(const Mesh& mesh, double h, double grow, const BuildStop& stop, ModelInterior* result) {
+  ModelInterior& out = *result;
+  out = ModelInterior{};
+  if (!layout(mesh, &h, &out.lo, &out.n)) return true;
   out.h = h;
   out.flags.assign(static_cast<std::size_t>(out.n.x) * out.n.y * out.n.z, 0);
   // The mesh in cube units (cube i spans [i, i+1]).
@@ -100,14 +124,14 @@ ModelInterior model_interior(const Mesh& mesh, double h, double grow) {
       v0[k] = std::clamp(static_cast<int>(std::ceil(tlo[k])) - 1, 0, out.n[k] - 1);
       v1[k] = std::clamp(static_cast<int>(std::floor(thi[k])), 0, out.n[k] - 1);
     }
-    for (int z = v0.z; z <= v1.z; ++z)
-      for (int y = v0.y; y <= v1.y; ++y)
-        for (int x = v0.x; x <= v1.x; ++x)
-          if (triangle_meets_box(a, b, c, Vec3(x + 0.5, y + 0.5, z + 0.5), half))
-            out.flags[static_cast<std::size_t>(x + out.n.x * (y + static_cast<std::size_t>(out.n.y) * z))] |=
-                ModelInterior::kTouched;
+    const std::uint64_t tests = triangle_voxels(a, b, c, v0, v1, half - 0.5, [&](int x, int y, int z) {
+      out.flags[static_cast<std::size_t>(x + out.n.x * (y + static_cast<std::size_t>(out.n.y) * z))] |=
+          ModelInterior::kTouched;
+    });
+    if (stop.tick && !stop.tick(tests + 1)) return false;
   }
-  const openvdb::FloatGrid::Ptr sdf = level_set(g, mesh);
+  const openvdb::FloatGrid::Ptr sdf = level_set(g, mesh, &stop.cancelled);
+  if (!sdf) return false;
   const openvdb::FloatGrid::ConstAccessor acc = sdf->getConstAccessor();
   for (int z = 0; z < out.n.z; ++z)
     for (int y = 0; y < out.n.y; ++y)
@@ -122,18 +146,20 @@ ModelInterior model_interior(const Mesh& mesh, double h, double grow) {
     const Vec3 blo = out.lo + Vec3(b.lo) * h, bhi = out.lo + Vec3(b.hi + 1) * h;
     out.boxes.push_back({0.5 * (blo + bhi), 0.5 * (bhi - blo)});
   }
-  return out;
+  return true;
 }
 
-void inside_voxel_centres(const std::vector<Vec3>& g, const Mesh& mesh, const VoxBox& range,
+bool inside_voxel_centres(const std::vector<Vec3>& g, const Mesh& mesh, const VoxBox& range, const BuildStop& stop,
                           const std::function<void(int, int, int)>& emit) {
-  if (range.empty()) return;
-  const openvdb::FloatGrid::Ptr sdf = level_set(g, mesh);
+  if (range.empty()) return true;
+  const openvdb::FloatGrid::Ptr sdf = level_set(g, mesh, &stop.cancelled);
+  if (!sdf) return false;
   const openvdb::FloatGrid::ConstAccessor acc = sdf->getConstAccessor();
   for (int z = range.lo.z; z <= range.hi.z; ++z)
     for (int y = range.lo.y; y <= range.hi.y; ++y)
       for (int x = range.lo.x; x <= range.hi.x; ++x)
         if (acc.getValue(openvdb::Coord(x, y, z)) < 0.0f) emit(x, y, z);
+  return true;
 }
 
 }  // namespace voxvis::detail

@@ -28,11 +28,21 @@ namespace voxvis::detail {
 /// by exactly two triangles, which run it in opposite directions.
 bool mesh_closed(const Mesh& mesh);
 
+/// How a build stops these conversions early: `cancelled` (polled by
+/// OpenVDB, from its threads too) and `tick` (steps of work done; false:
+/// stop). Either may be empty.
+struct BuildStop {
+  std::function<bool()> cancelled;
+  std::function<bool(std::uint64_t)> tick;
+};
+
 /// For a closed mesh whose vertices, placed and mapped, are `g` (grid
 /// coordinates: voxel i spans [i, i+1] along each axis), calls emit(x, y, z)
 /// for every voxel of `range` whose centre OpenVDB's level set of the mesh
-/// (voxel size 1, centres at the grid's voxel centres) puts inside.
-void inside_voxel_centres(const std::vector<Vec3>& g, const Mesh& mesh, const VoxBox& range,
+/// (voxel size 1, centres at the grid's voxel centres) puts inside. The
+/// level set is made on the calling thread alone. False, having emitted
+/// nothing, when `stop` stopped it.
+bool inside_voxel_centres(const std::vector<Vec3>& g, const Mesh& mesh, const VoxBox& range, const BuildStop& stop,
                           const std::function<void(int, int, int)>& emit);
 
 /// A dynamic closed mesh's interior in its own frame (model units), built
@@ -61,7 +71,8 @@ glm::ivec3 model_interior_cubes(const Mesh& mesh, double h);
 
 /// The interior of closed mesh `mesh` at cubes of side about `h` (coarser
 /// when the mesh would need more than 128 along an axis), triangles tested
-/// against cubes grown by `grow` (model units).
-ModelInterior model_interior(const Mesh& mesh, double h, double grow);
+/// against cubes grown by `grow` (model units), into `*out`. False when
+/// `stop` stopped it (`*out` is then not to be used).
+bool model_interior(const Mesh& mesh, double h, double grow, const BuildStop& stop, ModelInterior* out);
 
 }  // namespace voxvis::detail

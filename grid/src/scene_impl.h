@@ -418,6 +418,8 @@ struct Scene::Impl {
 
   // Counters gathered between frames (moves), reported with the next frame.
   FrameStats pending;
+  /// Bytes the build counted as the scene's (Scene::built_bytes).
+  std::uint64_t built_bytes = 0;
   std::vector<std::uint32_t> pending_wake;
 
   // --- geometry -----------------------------------------------------------

@@ -213,7 +213,8 @@ TEST(MeshInterior, ModelInteriorBoxesLieInsideTheTriangles) {
                                              : k == 1 ? tiled_box(Vec3(1.0, 0.4, 0.7), 3)
                                              : k == 2 ? tiled_box(Vec3(1.0), 2, true)
                                                       : hollow_box(2);
-    const detail::ModelInterior in = detail::model_interior(*mesh, 0.1, 1e-9);
+    detail::ModelInterior in;
+    ASSERT_TRUE(detail::model_interior(*mesh, 0.1, 1e-9, {}, &in));
     EXPECT_FALSE(in.boxes.empty()) << k;
     ObjectDesc o = mesh_object(1, k == 3 ? tiled_box(Vec3(1.0), 2) : mesh, Vec3(0.0));
     for (const detail::ModelInterior::Box& b : in.boxes)

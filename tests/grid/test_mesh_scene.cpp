@@ -90,12 +90,14 @@ TEST(MeshScene, StaticMeshVoxelsComeFromItsTrianglesNotItsBox) {
   // Its box is still what bounds it for culling.
   EXPECT_LE(s.objs[0].box_lo().x, 0.5);
   EXPECT_GE(s.objs[0].box_hi().y, 19.6);
-  // The estimate counts exactly what was stored.
+  // The estimate bounds what was stored, from the triangles' sizes alone
+  // (mesh_cost.h), within a small factor of it.
   SceneCost cost;
   ASSERT_TRUE(Scene::estimate(d, {}, &cost).ok);
   std::uint64_t entries = 0;
   for (int l = 0; l < s.pyr.levels; ++l) entries += s.static_lists[static_cast<std::size_t>(l)].ids.size();
-  EXPECT_EQ(cost.id_entries, entries);
+  EXPECT_GE(cost.id_entries, entries);
+  EXPECT_LE(cost.id_entries, 3 * entries);
 }
 
 TEST(MeshScene, PlacementAppliesToTheVoxels) {

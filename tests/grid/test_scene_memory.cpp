@@ -10,12 +10,15 @@
 #include <cstdint>
 #include <memory>
 #include <queue>
+#include <set>
 #include <sstream>
 #include <string>
 #include <type_traits>
 #include <vector>
 
+#include "build_parts.h"
 #include "engine_check.h"
+#include "meshes.h"
 #include "scene_impl.h"
 #include "scenes.h"
 #include "voxvis/scene.h"
@@ -95,6 +98,24 @@ std::uint64_t scene_footprint(const Scene::Impl& s, std::string* detail = nullpt
   f.add("outside", bytes_of(s.outside_objs) + bytes_of(s.outside_tbvs));
   f.add("expiry", bytes_of_queue(s.expiry));
   f.add("queues", bytes_of(s.unclaimed) + bytes_of(s.queued_reveals) + bytes_of(s.pending_wake));
+  // Meshes: the per-brick triangles and interior boxes, each static mesh's
+  // placed vertices, and once each, the meshes, their quads and interiors.
+  f.add("brick_tris", bytes_of(s.brick_tri_offsets) + bytes_of(s.brick_tris));
+  f.add("brick_mesh_boxes", bytes_of(s.brick_mesh_boxes));
+  std::set<const void*> once;
+  std::uint64_t placed = 0, meshes = 0, quads = 0, interiors = 0;
+  for (const detail::Obj& o : s.objs) {
+    placed += bytes_of(o.placed);
+    if (o.mesh && once.insert(o.mesh.get()).second)
+      meshes += bytes_of(o.mesh->vertices) + bytes_of(o.mesh->triangles);
+    if (o.quads && once.insert(o.quads.get()).second) quads += bytes_of(o.quads->partner) + bytes_of(o.quads->quad);
+    if (o.interior && once.insert(o.interior.get()).second)
+      interiors += bytes_of(o.interior->flags) + bytes_of(o.interior->boxes);
+  }
+  f.add("placed", placed);
+  f.add("meshes", meshes);
+  f.add("quads", quads);
+  f.add("interiors", interiors);
   if (detail) *detail = f.items.str();
   return f.total;
 }
@@ -217,6 +238,151 @@ TEST(SceneMemory, TheEstimateHoldsObjectsCoveringTheGridAndIsCloseThere) {
       if (HasFatalFailure()) return;
       EXPECT_LE(static_cast<double>(m.cost.bytes), 4.0 / 3.0 * static_cast<double>(m.scene)) << label;
     }
+}
+
+// --- Meshes ---------------------------------------------------------------
+
+/// `copies` copies of one triangle with legs of `leg` world units (its own
+/// vertices each), as one static mesh in a 64^3 grid over [0, 100]^3.
+SceneDesc copied_triangle(int copies, double leg) {
+  SceneDesc d;
+  d.bounds_min = Vec3(0.0);
+  d.bounds_max = Vec3(100.0);
+  d.grid = glm::ivec3(64);
+  auto m = std::make_shared<Mesh>();
+  for (int i = 0; i < copies; ++i) {
+    const auto k = static_cast<std::uint32_t>(m->vertices.size());
+    m->vertices.push_back(Vec3(5.0));
+    m->vertices.push_back(Vec3(5.0 + leg, 5.0, 5.0 + 0.3 * leg));
+    m->vertices.push_back(Vec3(5.0, 5.0 + leg, 5.0 + 0.6 * leg));
+    m->triangles.push_back({k, k + 1, k + 2});
+  }
+  m->vertices.shrink_to_fit();  // As a description's meshes are: sized once.
+  m->triangles.shrink_to_fit();
+  d.objects.push_back(mesh_object(1, m, Vec3(0.0)));
+  return d;
+}
+
+/// The mesh scenes whose builds must stay within their estimates: the
+/// hostile ones (many copies of a large triangle, of a small one), many
+/// instances of a closed mesh (each with its interior), a soup of large
+/// triangles, a closed mesh far larger than its grid (no interior), moving
+/// closed meshes (their interiors in their own frames).
+std::vector<std::pair<std::string, SceneDesc>> mesh_budget_scenes() {
+  std::vector<std::pair<std::string, SceneDesc>> out;
+  out.emplace_back("2,000 copies of a large triangle", copied_triangle(scaled(2000), 90.0));
+  out.emplace_back("20,000 copies of a small triangle", copied_triangle(scaled(20000), 1.0));
+  SceneDesc spheres = unit_grid(40);
+  const std::shared_ptr<const Mesh> ball = icosphere(2);
+  for (int i = 0; i < 200; ++i)
+    spheres.objects.push_back(mesh_object(static_cast<ObjectId>(i + 1), ball,
+                                          Vec3(2.0 + (i % 10) * 3.9, 2.0 + (i / 10 % 10) * 3.9, 10.0 + (i / 100) * 12.0),
+                                          rotation_about(Vec3(1, 2, 3), 0.1 * i), 1.4));
+  out.emplace_back("200 closed spheres", spheres);
+  SceneDesc soup = unit_grid(48);
+  soup.objects.push_back(mesh_object(1, triangle_soup(400, 7), Vec3(24.0), Quat(1, 0, 0, 0), 20.0));
+  out.emplace_back("a soup of large triangles", soup);
+  SceneDesc huge = unit_grid(16);
+  huge.objects.push_back(mesh_object(1, icosphere(3), Vec3(8.0, 8.0, 8.0 + 1e5), Quat(1, 0, 0, 0), 1e5 + 2.0));
+  out.emplace_back("a closed mesh far larger than its grid", huge);
+  SceneDesc moving = unit_grid(32);
+  for (int i = 0; i < 20; ++i)
+    moving.objects.push_back(
+        dynamic(mesh_object(static_cast<ObjectId>(i + 1), ball, Vec3(3.0 + i * 1.3, 16, 16), Quat(1, 0, 0, 0), 1.0 + 0.1 * i),
+                2.0));
+  out.emplace_back("moving closed meshes", moving);
+  return out;
+}
+
+// Before: the estimate ran every triangle against every voxel of its box
+// and kept a list entry per triangle and voxel; 10,000 copies of one large
+// triangle were estimated at 26 MiB and built at a 594 MiB peak in 97 s.
+// Now each triangle's cells are bounded in O(1) (mesh_cost.h), and the
+// build counts what it allocates: it needs nothing beyond its estimate.
+TEST(SceneMemory, MeshBuildsStayWithinTheirEstimates) {
+  for (const auto& [name, d] : mesh_budget_scenes())
+    for (const bool buffer : {true, false}) {
+      const std::string label = name + buffer_text(buffer);
+      SceneCost cost;
+      ASSERT_TRUE(Scene::estimate(d, with_buffer(buffer), &cost).ok) << label;
+      int asked = 0;
+      BuildControl control;
+      control.max_bytes = cost.bytes + cost.build_bytes;
+      control.reserve = [&asked](std::uint64_t) {
+        ++asked;
+        return false;
+      };
+      std::unique_ptr<Scene> scene;
+      const Status st = Scene::create(d, with_buffer(buffer), &scene, &control);
+      ASSERT_TRUE(st.ok) << label << ": " << st.str();
+      EXPECT_EQ(asked, 0) << label;
+      std::string detail;
+      const std::uint64_t kept = scene_footprint(scene->impl(), &detail);
+      EXPECT_LE(kept, cost.bytes) << label << " as built:" << detail;
+      EXPECT_LE(kept, scene->built_bytes()) << label << " as built:" << detail;
+      // A budget's figure, high by a small factor, not by orders.
+      EXPECT_LE(cost.bytes, 4 * kept + (std::uint64_t{1} << 16)) << label << ": kept " << kept;
+    }
+}
+
+TEST(SceneMemory, ABuildPastItsReservationAsksForMoreAndStopsWhenRefused) {
+  // The meter every build counts its memory with (build_parts.h): within
+  // what was reserved nothing is asked; past it the control is asked for
+  // the total, and the build stops when it refuses.
+  std::vector<std::uint64_t> asked;
+  bool grant = true;
+  BuildControl control;
+  control.max_bytes = 1000;
+  control.reserve = [&](std::uint64_t needed) {
+    asked.push_back(needed);
+    return grant;
+  };
+  build::BuildMeter meter(&control);
+  EXPECT_TRUE(meter.charge(600));
+  EXPECT_TRUE(meter.charge(400));
+  EXPECT_TRUE(asked.empty());
+  meter.release(300);  // A temporary gone.
+  EXPECT_TRUE(meter.charge(250));
+  EXPECT_TRUE(asked.empty()) << "950 of 1000";
+  EXPECT_TRUE(meter.charge(150));
+  EXPECT_EQ(asked, std::vector<std::uint64_t>{1100});
+  EXPECT_EQ(meter.charged(), 1100u);
+  grant = false;
+  EXPECT_FALSE(meter.charge(1000));
+  EXPECT_EQ(asked.back(), 2100u);
+  const Status st = meter.stopped();
+  EXPECT_EQ(st.code, Status::Code::ResourceExhausted);
+  EXPECT_EQ(st.field, "memory");
+  EXPECT_NE(st.message.find("the build needed 0.0 MiB, more than the 0.0 MiB reserved"), std::string::npos)
+      << st.message;
+  // Without a control's reserve, the reservation is a hard limit.
+  BuildControl hard;
+  hard.max_bytes = 10;
+  build::BuildMeter strict(&hard);
+  EXPECT_FALSE(strict.charge(11));
+  EXPECT_EQ(strict.stopped().code, Status::Code::ResourceExhausted);
+  // A cancelled build says so, not that memory ran out.
+  build::BuildMeter free(nullptr);
+  EXPECT_TRUE(free.charge(std::uint64_t{1} << 40)) << "no control: no limit";
+  EXPECT_EQ(free.stopped().code, Status::Code::Cancelled);
+}
+
+TEST(SceneMemory, MeshBuildsStopWhenCancelled) {
+  const SceneDesc d = copied_triangle(2000, 90.0);
+  for (const bool build : {false, true}) {
+    int polls = 0;
+    BuildControl control;
+    control.cancelled = [&polls] { return ++polls > 3; };
+    std::unique_ptr<Scene> scene;
+    SceneCost cost;
+    const Status st = build ? Scene::create(d, {}, &scene, &control) : Scene::estimate(d, {}, &cost, &control);
+    if (build) {
+      EXPECT_EQ(st.code, Status::Code::Cancelled) << st.str();
+      EXPECT_LE(polls, 8) << "stopped at the first poll past three";
+    } else {
+      EXPECT_TRUE(st.ok) << "the estimate of one mesh takes fewer polls than that: " << st.str();
+    }
+  }
 }
 
 }  // namespace

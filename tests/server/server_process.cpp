@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -565,6 +566,14 @@ long proc_status_kib(pid_t pid, const std::string& name) {
 long ServerProcess::peak_rss_kib() const { return proc_status_kib(pid(), "VmHWM"); }
 
 long ServerProcess::rss_kib() const { return proc_status_kib(pid(), "VmRSS"); }
+
+bool ServerProcess::reset_peak_rss() const {
+  if (pid() <= 0) return false;
+  std::FILE* f = std::fopen(("/proc/" + std::to_string(pid()) + "/clear_refs").c_str(), "w");
+  if (f == nullptr) return false;
+  const bool written = std::fputs("5", f) >= 0;
+  return std::fclose(f) == 0 && written;
+}
 
 double ServerProcess::cpu_seconds() const {
   if (pid() <= 0) return -1.0;

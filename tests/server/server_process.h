@@ -322,6 +322,10 @@ class ServerProcess {
   long rss_kib() const;
   /// The server's peak resident set size so far (VmHWM), KiB; -1 when unreadable.
   long peak_rss_kib() const;
+  /// Sets the peak (VmHWM) back to the present resident size, so that the
+  /// next peak_rss_kib() is that of what happens from now on (Linux's
+  /// /proc/PID/clear_refs); false when the kernel refuses.
+  bool reset_peak_rss() const;
   /// CPU time the server has used so far (user and system, all threads),
   /// seconds; -1 when unreadable.
   double cpu_seconds() const;

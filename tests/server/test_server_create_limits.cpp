@@ -11,6 +11,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "meshes.h"
 #include "scenes.h"
 #include "server_process.h"
 
@@ -89,6 +90,80 @@ TEST(CreateLimits, ARefusedInstancingCreateIsCheapAndHoldsNoOtherCreate) {
   // on a loaded machine (measured: docs/performance.md).
   EXPECT_LT(refused_done, 20.0);
   EXPECT_LT(tiny_done, 20.0);
+  EXPECT_EQ(server.terminate(), 0);
+}
+
+/// `copies` copies of one triangle with legs of `leg` units (each with
+/// vertices of its own), as one static mesh in a 64^3 grid over [0, 100]^3.
+v1::SceneDescription copied_triangle(int copies, double leg) {
+  v1::SceneDescription d;
+  d.mutable_bounds_max()->set_x(100);
+  d.mutable_bounds_max()->set_y(100);
+  d.mutable_bounds_max()->set_z(100);
+  d.mutable_bounds_min()->set_x(0);
+  d.mutable_grid()->set_nx(64);
+  d.mutable_grid()->set_ny(64);
+  d.mutable_grid()->set_nz(64);
+  v1::Mesh* m = d.add_meshes();
+  for (int i = 0; i < copies; ++i) {
+    for (double v : {5.0, 5.0, 5.0, 5.0 + leg, 5.0, 5.0 + 0.3 * leg, 5.0, 5.0 + leg, 5.0 + 0.6 * leg})
+      m->add_vertices(v);
+    for (int k = 0; k < 3; ++k) m->add_triangles(static_cast<std::uint32_t>(3 * i + k));
+  }
+  v1::Object* o = d.add_objects();
+  o->set_id(1);
+  o->mutable_mesh()->set_index(0);
+  return d;
+}
+
+// Before: one mesh of 10,000 copies of a triangle with 90-unit legs in a
+// 64^3 grid was accepted under a 64 MiB budget with an estimate of 26 MiB,
+// then built for 97 s to a peak of 594 MiB (its voxels were listed once per
+// triangle before being sorted out). The server's memory must stay within
+// the budget: a create is refused, or built within it.
+TEST(CreateLimits, MeshBuildsKeepWithinTheMemoryBudget) {
+  ServerProcess server({"--memory-budget-mib", "64", "--workers", "1"});
+  ASSERT_TRUE(server.start());
+  const Api api = server.api();
+  // 1,000 placements of a 320-triangle closed sphere, each with its interior.
+  v1::SceneDescription spheres;
+  {
+    SceneDesc d;
+    d.bounds_max = Vec3(100.0);
+    const std::shared_ptr<const Mesh> ball = test::icosphere(2);
+    for (int i = 0; i < 1000; ++i)
+      d.objects.push_back(test::mesh_object(static_cast<ObjectId>(i + 1), ball,
+                                            Vec3(5.0 + (i % 10) * 9.5, 5.0 + (i / 10 % 10) * 9.5, 5.0 + (i / 100) * 9.5),
+                                            Quat(1, 0, 0, 0), 3.0));
+    to_proto(d, &spheres);
+  }
+  struct Case {
+    const char* id;
+    v1::SceneDescription d;
+  };
+  const Case cases[] = {{"large-triangles", copied_triangle(10000, 90.0)},
+                        {"small-triangles", copied_triangle(300000, 1.0)},
+                        {"closed-spheres", spheres}};
+  int built = 0;
+  for (const Case& c : cases) {
+    ASSERT_TRUE(server.reset_peak_rss());
+    const long before = server.rss_kib();
+    const grpc::Status s = create(api, c.id, c.d, Seconds(300));
+    if (s.ok()) {
+      ++built;
+      ASSERT_TRUE(api.delete_scene(c.id).ok()) << "the next case has the whole budget";
+    } else {
+      EXPECT_EQ(s.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << c.id << ": " << show(s);
+      EXPECT_THAT(s.error_message(), HasSubstr("memory")) << c.id;
+    }
+    // What the process took beyond what it held: what is left of the
+    // budget, and the request itself as gRPC and the description hold it
+    // (a few times the message), not more.
+    const long message_kib = static_cast<long>(c.d.ByteSizeLong() / 1024);
+    EXPECT_LE(server.peak_rss_kib() - before, 64 * 1024 + 4 * message_kib + 8 * 1024)
+        << c.id << " (" << (s.ok() ? "built" : "refused") << "): a " << message_kib << " KiB message";
+  }
+  EXPECT_GE(built, 2) << "the large triangles and the spheres fit: their voxels are counted once";
   EXPECT_EQ(server.terminate(), 0);
 }
 

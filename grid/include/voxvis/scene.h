@@ -202,6 +202,10 @@ struct SceneCost {
   std::uint64_t scratch_bytes = 0;///< What each worker's Scratch grows by to serve it, bytes.
   std::uint64_t id_entries = 0;   ///< Entries of the id lists (each object once per cell it is stored in).
   std::uint64_t work = 0;         ///< Steps the build takes (cells written and tested), for progress.
+  /// What the build needs beyond `bytes` while it runs, bytes: its
+  /// temporaries at their peak (a mesh's voxel marks, its triangles'
+  /// pairing, a closed mesh's level set).
+  std::uint64_t build_bytes = 0;
 
   /// What serving the scene from `workers` threads costs, bytes: the
   /// scene's own and each worker's scratch (the figure a server's memory
@@ -215,11 +219,20 @@ struct SceneCost {
 /// every few milliseconds of work.
 struct BuildControl {
   /// When set and returning true, the work stops: Status::Code::Cancelled.
+  /// May be called from other threads than the caller's (a level set's).
   std::function<bool()> cancelled;
-  /// 0: none. The scene's bytes (SceneCost::bytes) may not exceed this:
-  /// refused with Status::Code::ResourceExhausted naming both figures,
-  /// before the large allocations.
+  /// 0: none. What the scene and its build may take (SceneCost::bytes +
+  /// SceneCost::build_bytes, counted before anything large is allocated)
+  /// and, for Scene::create, the memory reserved for the build: the build
+  /// counts what it allocates as it goes, and past this figure asks
+  /// `reserve`. Refused with Status::Code::ResourceExhausted naming the
+  /// figures.
   std::uint64_t max_bytes = 0;
+  /// Called when a build's memory would pass `max_bytes` (or the last
+  /// figure granted) with the bytes it needs in all: true grants them (the
+  /// caller reserved more), false stops the build (ResourceExhausted). Not
+  /// set: the build stops.
+  std::function<bool(std::uint64_t)> reserve;
 };
 
 class Scene {
@@ -231,12 +244,19 @@ class Scene {
                        std::unique_ptr<Scene>* out, const BuildControl* control = nullptr);
   /// What create() would cost (memory, id-list entries, work), validated as
   /// create() validates, without building: O(objects) for boxes, O(the cells
-  /// a sphere's surface crosses) for spheres, and it stops as soon as
-  /// `control->max_bytes` is exceeded (ResourceExhausted) or it is cancelled.
+  /// a sphere's surface crosses) for spheres, O(vertices + triangles) for a
+  /// mesh (each triangle's voxels, bricks and interior band bounded, never
+  /// counted one by one: docs/design.md, "What a mesh costs"), and it stops
+  /// as soon as `control->max_bytes` is exceeded (ResourceExhausted) or it
+  /// is cancelled.
   static Status estimate(const SceneDesc& desc, const SceneOptions& options, SceneCost* out,
                          const BuildControl* control = nullptr);
   /// Resolution the engine would choose for `desc` when it names none.
   static glm::ivec3 auto_resolution(const SceneDesc& desc, const SceneOptions& options);
+  /// Bytes the build counted as the scene's (its grid's layers, id lists,
+  /// boxes and meshes' parts) where SceneCost::bytes foresaw them: what a
+  /// memory budget keeps for it when the build needed more than foreseen.
+  std::uint64_t built_bytes() const;
 
   ~Scene();
   Scene(const Scene&) = delete;
