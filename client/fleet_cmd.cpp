@@ -1,6 +1,9 @@
 // fleet_cmd.cpp — a fleet of servers (--servers): routing a scene to its
 // owner, and `voxvis rebalance`, which moves every scene to its owner after
-// the fleet changed (docs/deploy.md, "Scenes over many servers").
+// the fleet changed (docs/deploy.md, "Scenes over many servers"). A scene
+// moves only when its server agrees it is misplaced (keeps it unserved for
+// another shard): one it still serves could acknowledge moves the copy would
+// lose, so it is reported and left.
 #include <cstdio>
 #include <map>
 #include <memory>
@@ -112,6 +115,18 @@ int run_rebalance(const RebalanceArgs& args) {
       ++in_place;
       continue;
     }
+    if (!found[0].kept) {
+      // Its server serves it as its own (its --fleet is the old list, or it
+      // has no --shard): it may acknowledge moves after an export, which the
+      // copy would lose. Moved only once that server agrees it is misplaced.
+      std::fprintf(stderr, "voxvis: error: scene '%s' is served by %s, but its owner by --servers is %s: left "
+                   "there, since %s may still acknowledge moves the copy would lose; restart %s with the fleet's "
+                   "--fleet (it then keeps the scene unserved), then run rebalance again\n", id.c_str(),
+                   shards[from].name.c_str(), shards[owner].name.c_str(), shards[from].name.c_str(),
+                   shards[from].name.c_str());
+      ++failed;
+      continue;
+    }
     std::printf("%s: %s -> %s%s\n", id.c_str(), shards[from].name.c_str(), shards[owner].name.c_str(),
                 args.dry_run ? " (dry run)" : "");
     std::fflush(stdout);
@@ -120,7 +135,9 @@ int run_rebalance(const RebalanceArgs& args) {
       continue;
     }
     v1::ExportSceneResponse exported;
-    if (const grpc::Status st = clients[from]->export_scene(id, &exported); !st.ok()) {
+    // The source agrees the scene is misplaced: it serves it to nobody and
+    // refuses its moves. Exported and deleted only while that holds.
+    if (const grpc::Status st = clients[from]->export_scene(id, &exported, true); !st.ok()) {
       report_status(st, shards[from].address, "export of scene '" + id + "'");
       ++failed;
       continue;
@@ -134,7 +151,7 @@ int run_rebalance(const RebalanceArgs& args) {
       ++failed;
       continue;
     }
-    if (const grpc::Status st = clients[from]->delete_scene(id); !st.ok()) {
+    if (const grpc::Status st = clients[from]->delete_scene(id, true); !st.ok()) {
       // Served by its owner now; the old copy is stale and is reported on
       // the next run as a scene on two servers.
       report_status(st, shards[from].address, "deleting the old copy of scene '" + id + "'");

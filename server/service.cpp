@@ -299,6 +299,12 @@ grpc::ServerUnaryReactor* Service::DeleteScene(grpc::CallbackServerContext* ctx,
     finish_unary(r, "DeleteScene", s);
     return reactor;
   }
+  if (req->only_if_misplaced() && find(req->scene_id())) {
+    // The end of a move: a scene this server serves (after a restart made it
+    // the owner again) keeps every move it acknowledged.
+    finish_unary(r, "DeleteScene", config_.shard.still_served(req->scene_id()));
+    return reactor;
+  }
   grpc::Status g = registry_.remove(req->scene_id(), [this](SceneEntry& e) {
     std::lock_guard<std::mutex> lock(streams_mu_);
     for (Stream* s : streams_) s->stop_if(&e, deleted(e));
@@ -366,6 +372,12 @@ grpc::ServerUnaryReactor* Service::ExportScene(grpc::CallbackServerContext* ctx,
   const std::string id = r->req.scene_id();
   if (grpc::Status s = check_scene_id(id); !s.ok()) {
     finish_unary(r, "ExportScene", s);
+    return reactor;
+  }
+  if (r->req.only_if_misplaced() && find(id)) {
+    // A move's export of a scene this server serves: moves it acknowledges
+    // after the export would be lost with the copy.
+    finish_unary(r, "ExportScene", config_.shard.still_served(id));
     return reactor;
   }
   // Reading the files takes a while for a large scene: on the build thread.

@@ -55,6 +55,15 @@ grpc::Status ShardIdentity::refusal(const std::string& scene_id, const std::stri
                           "(voxvis --servers, docs/deploy.md)");
 }
 
+grpc::Status ShardIdentity::still_served(const std::string& scene_id) const {
+  const std::string self =
+      enabled() ? "shard '" + self_ + "', whose --fleet makes it the scene's owner" : "a server without --shard, which serves every scene";
+  return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
+                      "scene_id: scene '" + scene_id + "' is served here (" + self +
+                          "), not kept for another shard: it may still acknowledge moves, so it is not moved; "
+                          "restart this server with the fleet's --fleet first, then move it (docs/deploy.md)");
+}
+
 std::string ShardIdentity::describe() const {
   std::string names;
   for (const std::string& n : fleet_) names += (names.empty() ? "" : ",") + n;

@@ -35,6 +35,10 @@ class ShardIdentity {
   std::string other_owner(std::string_view scene_id) const;
   /// FAILED_PRECONDITION: scene `scene_id` belongs to shard `owner`.
   grpc::Status refusal(const std::string& scene_id, const std::string& owner) const;
+  /// FAILED_PRECONDITION: a move's export or delete (only_if_misplaced) of
+  /// scene `scene_id`, which this server serves as its own: it may still
+  /// acknowledge moves, so it is not moved.
+  grpc::Status still_served(const std::string& scene_id) const;
   /// "shard voxvis-0 of 3 (voxvis-0,voxvis-1,voxvis-2)".
   std::string describe() const;
 

@@ -331,11 +331,12 @@ grpc::Status Client::create_scene(const std::string& scene_id, const SceneDesc& 
   return stub_->CreateScene(&context, request, info);
 }
 
-grpc::Status Client::delete_scene(const std::string& scene_id) const {
+grpc::Status Client::delete_scene(const std::string& scene_id, bool only_if_misplaced) const {
   grpc::ClientContext context;
   prepare(&context, call_timeout);
   v1::DeleteSceneRequest request;
   request.set_scene_id(scene_id);
+  request.set_only_if_misplaced(only_if_misplaced);
   v1::DeleteSceneResponse response;
   return stub_->DeleteScene(&context, request, &response);
 }
@@ -359,11 +360,13 @@ grpc::Status Client::list_scenes(v1::ListScenesResponse* response) const {
   return stub_->ListScenes(&context, v1::ListScenesRequest{}, response);
 }
 
-grpc::Status Client::export_scene(const std::string& scene_id, v1::ExportSceneResponse* response) const {
+grpc::Status Client::export_scene(const std::string& scene_id, v1::ExportSceneResponse* response,
+                                  bool only_if_misplaced) const {
   grpc::ClientContext context;
   prepare(&context, create_timeout);
   v1::ExportSceneRequest request;
   request.set_scene_id(scene_id);
+  request.set_only_if_misplaced(only_if_misplaced);
   return stub_->ExportScene(&context, request, response);
 }
 

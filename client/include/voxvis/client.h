@@ -123,13 +123,20 @@ class Client {
   /// (another server's ExportScene answer; none when null).
   grpc::Status create_scene(const std::string& scene_id, const std::string& scene_json,
                             const v1::ScenePositions* positions, v1::SceneInfo* info) const;
-  grpc::Status delete_scene(const std::string& scene_id) const;
+  /// DeleteScene; with `only_if_misplaced`, only a scene the server keeps
+  /// unserved for another shard (the end of a move: FAILED_PRECONDITION,
+  /// and kept, when the server serves it).
+  grpc::Status delete_scene(const std::string& scene_id, bool only_if_misplaced = false) const;
   /// Ascending scene ids.
   grpc::Status list_scenes(std::vector<v1::SceneInfo>* scenes) const;
   /// The whole answer: the scenes served, and those kept for another shard.
   grpc::Status list_scenes(v1::ListScenesResponse* response) const;
-  /// A scene's file and positions, to move it (ExportScene; admin).
-  grpc::Status export_scene(const std::string& scene_id, v1::ExportSceneResponse* response) const;
+  /// A scene's file and positions, to move it (ExportScene; admin). With
+  /// `only_if_misplaced`, only a scene the server keeps unserved for another
+  /// shard (FAILED_PRECONDITION when it serves it: it may still acknowledge
+  /// moves the export would not carry).
+  grpc::Status export_scene(const std::string& scene_id, v1::ExportSceneResponse* response,
+                            bool only_if_misplaced = false) const;
   grpc::Status get_scene_stats(const std::string& scene_id, v1::SceneInfo* info) const;
   /// One PVS for a fresh viewer at time `t` (seconds). `result->wake` stays
   /// empty (GetPvs has none); `*t_used` (may be null) receives the scene time
