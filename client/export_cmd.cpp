@@ -146,7 +146,8 @@ int run_export(const ExportArgs& args) {
     frame.pvs = &result.pvs;
   }
   vdb::ExportSummary sum;
-  if (const Status st = vdb::write_vdb(out.temp_path(), *scene, args.engine.scene, with_frame ? &frame : nullptr, &sum);
+  if (const Status st = vdb::write_vdb(out.temp_path(), *scene, args.engine.scene, with_frame ? &frame : nullptr, &sum,
+                                       !out.direct());
       !st)
     return report(FormatError{args.vdb, 0, st.field, st.message});
   if (!out.commit(&message)) return report(FormatError{args.vdb, 0, "", message});

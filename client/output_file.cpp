@@ -5,6 +5,7 @@
 #include <cstring>
 #include <string>
 
+#include <sys/stat.h>
 #include <unistd.h>
 
 namespace voxvis::cli {
@@ -54,7 +55,20 @@ void unregister_temp(const std::string& path) {
 
 std::string errno_text() { return std::strerror(errno); }
 
+/// "a directory", "a socket", ...: what a file that is not a regular one is.
+std::string kind_of(mode_t mode) {
+  if (S_ISDIR(mode)) return "a directory";
+  if (S_ISSOCK(mode)) return "a socket";
+  if (S_ISBLK(mode)) return "a block device";
+  return "a special file";
+}
+
 }  // namespace
+
+bool is_device_or_fifo(const std::string& path) {
+  struct stat st{};
+  return ::stat(path.c_str(), &st) == 0 && (S_ISCHR(st.st_mode) || S_ISFIFO(st.st_mode));
+}
 
 OutputFile::~OutputFile() { discard(); }
 
@@ -66,8 +80,23 @@ bool OutputFile::open(const std::string& path, std::string* message) {
     path_ = "<stdout>";
     return true;
   }
-  install_handlers_once();
   path_ = path;
+  struct stat st{};
+  if (::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode)) {
+    if (S_ISCHR(st.st_mode) || S_ISFIFO(st.st_mode)) {
+      // Written in place: renaming a file over a device node would replace it.
+      file_ = std::fopen(path.c_str(), "wb");
+      if (file_ == nullptr) {
+        *message = "cannot open " + path + " for writing: " + errno_text();
+        return false;
+      }
+      direct_ = true;
+      return true;
+    }
+    *message = "is " + kind_of(st.st_mode) + ", not a file to write; give a file's path";
+    return false;
+  }
+  install_handlers_once();
   // Same directory as the target, so that rename() is atomic.
   temp_path_ = path + ".tmp-" + std::to_string(static_cast<long>(::getpid()));
   register_temp(temp_path_);
@@ -93,6 +122,17 @@ bool OutputFile::commit(std::string* message) {
     if (!ok) *message = "cannot write to standard output: " + errno_text();
     return ok;
   }
+  if (direct_) {
+    bool ok = std::fflush(file_) == 0 && std::ferror(file_) == 0;
+    if (!ok) *message = "cannot write " + path_ + ": " + errno_text();
+    if (std::fclose(file_) != 0 && ok) {
+      ok = false;
+      *message = "cannot write " + path_ + ": " + errno_text();
+    }
+    file_ = nullptr;
+    direct_ = false;
+    return ok;
+  }
   bool ok = std::fflush(file_) == 0 && std::ferror(file_) == 0;
   if (!ok) *message = "cannot write " + temp_path_ + ": " + errno_text();
   if (std::fclose(file_) != 0 && ok) {
@@ -115,6 +155,7 @@ void OutputFile::discard() {
   if (is_stdout_ && file_ != nullptr) std::fflush(file_);
   file_ = nullptr;
   is_stdout_ = false;
+  direct_ = false;
   if (!temp_path_.empty()) {
     std::remove(temp_path_.c_str());
     unregister_temp(temp_path_);

@@ -2,6 +2,12 @@
 // to the target, renamed over it only by commit(). A run that fails (or is
 // interrupted by SIGINT/SIGTERM/SIGHUP) removes the temporary file and leaves
 // any earlier target untouched, so a file at the target path is always complete.
+//
+// A target that exists and is not a regular file is never replaced: a
+// character device or a FIFO (/dev/null, /dev/stdout, a named pipe) is
+// written to directly, as a shell's `>` would, and so not all or nothing; a
+// directory, a socket or a block device is refused, naming what it is. Every
+// command that writes a file writes it through OutputFile.
 #pragma once
 
 #include <cstdio>
@@ -10,6 +16,9 @@
 
 namespace voxvis::cli {
 
+/// Whether `path` is a character device or a FIFO (written in place).
+bool is_device_or_fifo(const std::string& path);
+
 class OutputFile {
  public:
   OutputFile() = default;
@@ -17,8 +26,10 @@ class OutputFile {
   OutputFile(const OutputFile&) = delete;
   OutputFile& operator=(const OutputFile&) = delete;
 
-  /// Starts writing `path`, or standard output when `path` is empty or "-".
-  /// On failure returns false and sets `message`.
+  /// Starts writing `path`, or standard output when `path` is empty or "-";
+  /// a character device or FIFO at `path` directly. On failure (a directory
+  /// or another kind of file that is not a regular one there, a temporary
+  /// file that cannot be made) returns false and sets `message`.
   bool open(const std::string& path, std::string* message);
   bool write(std::string_view data) {
     return std::fwrite(data.data(), 1, data.size(), file_) == data.size();
@@ -29,14 +40,18 @@ class OutputFile {
   /// Closes and removes the temporary file (no-op for stdout).
   void discard();
   const std::string& path() const { return path_; }
-  /// The temporary file, for a library that writes a file by name (OpenVDB)
-  /// instead of through write(): commit() renames it into place all the
-  /// same. Empty for standard output.
-  const std::string& temp_path() const { return temp_path_; }
+  /// A character device or FIFO, written in place (it cannot be read back).
+  bool direct() const { return direct_; }
+  /// The file to write, for a library that writes a file by name (OpenVDB)
+  /// instead of through write(): the temporary file, which commit() renames
+  /// into place all the same, or the device or FIFO itself. Empty for
+  /// standard output.
+  const std::string& temp_path() const { return direct_ ? path_ : temp_path_; }
 
  private:
   std::FILE* file_ = nullptr;
   bool is_stdout_ = false;
+  bool direct_ = false;  // A character device or FIFO, written to in place.
   std::string path_;
   std::string temp_path_;
 };

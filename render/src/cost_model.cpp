@@ -233,6 +233,11 @@ bool Renderer::Impl::ensure_model(std::string* note, std::string* error) {
   out["models"].push_back(to_json(c));
   std::error_code ec;
   const std::filesystem::path p(path);
+  if (std::filesystem::exists(p, ec) && !std::filesystem::is_regular_file(p, ec)) {
+    // A device, a FIFO or a directory is never replaced by the file.
+    *note += "; not saved: " + path + " is not a regular file";
+    return true;
+  }
   if (p.has_parent_path()) std::filesystem::create_directories(p.parent_path(), ec);
   const std::string tmp = path + ".tmp";
   {

@@ -84,7 +84,7 @@ Status check_grid(const GridSpec& grid) {
 }
 
 Status write_vdb(const std::string& path, const Scene& scene, const std::string& source, const FrameGrids* frame,
-                 ExportSummary* summary) {
+                 ExportSummary* summary, bool read_back) {
   const GridSpec& g = scene.grid();
   if (Status st = check_grid(g); !st) return st;
   try {
@@ -163,12 +163,14 @@ Status write_vdb(const std::string& path, const Scene& scene, const std::string&
     // io::File does not report a stream that failed part way (a full
     // disk): the file is opened again and its grid descriptors read, which
     // catches a file cut short before its last grid.
-    openvdb::io::File back(path);
-    back.open(false);
-    for (const openvdb::GridBase::Ptr& grid : grids)
-      if (!back.hasGrid(grid->getName()))
-        return Status::Error("", "the file written does not read back: grid '" + grid->getName() + "' is missing");
-    back.close();
+    if (read_back) {
+      openvdb::io::File back(path);
+      back.open(false);
+      for (const openvdb::GridBase::Ptr& grid : grids)
+        if (!back.hasGrid(grid->getName()))
+          return Status::Error("", "the file written does not read back: grid '" + grid->getName() + "' is missing");
+      back.close();
+    }
   } catch (const openvdb::Exception& e) {
     // IoError (cannot open or read back the file) and the like; others
     // (out of memory) are not the input's fault and propagate.

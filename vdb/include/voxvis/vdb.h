@@ -48,9 +48,11 @@ Status check_grid(const GridSpec& grid);
 /// file's metadata. Not atomic: a caller that must never leave a partial
 /// file writes to a temporary path and renames it. Errors (the grid
 /// refused by check_grid, OpenVDB failing to write) come back as a Status
-/// whose message says what failed. Reads the scene under its shared lock
+/// whose message says what failed. The file is read back to check that
+/// every grid is there, unless `read_back` is false (a device or a FIFO,
+/// which cannot be read back). Reads the scene under its shared lock
 /// (inspect_grid).
 Status write_vdb(const std::string& path, const Scene& scene, const std::string& source, const FrameGrids* frame,
-                 ExportSummary* summary = nullptr);
+                 ExportSummary* summary = nullptr, bool read_back = true);
 
 }  // namespace voxvis::vdb
