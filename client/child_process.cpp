@@ -2,6 +2,7 @@
 #include "child_process.h"
 
 #include <poll.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -13,9 +14,45 @@
 #include <cstring>
 
 namespace voxvis::cli {
+namespace {
+
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+constexpr bool kSanitized = true;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
+constexpr bool kSanitized = true;
+#else
+constexpr bool kSanitized = false;
+#endif
+#else
+constexpr bool kSanitized = false;
+#endif
+
+/// In the child: its address space limited to what it has plus `bytes`.
+void limit_memory(std::uint64_t bytes) {
+  if (kSanitized) return;
+  unsigned long long pages = 0;
+  if (std::FILE* f = std::fopen("/proc/self/statm", "r")) {
+    if (std::fscanf(f, "%llu", &pages) != 1) pages = 0;
+    std::fclose(f);
+  }
+  const std::uint64_t now = static_cast<std::uint64_t>(pages) * static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE));
+  const rlimit lim{static_cast<rlim_t>(now + bytes), static_cast<rlim_t>(now + bytes)};
+  (void)::setrlimit(RLIMIT_AS, &lim);
+}
+
+}  // namespace
+
+bool child_memory_limits() { return !kSanitized; }
+
+std::uint64_t default_child_memory_bytes() {
+  const long pages = ::sysconf(_SC_PHYS_PAGES), size = ::sysconf(_SC_PAGESIZE);
+  const std::uint64_t half = pages > 0 && size > 0 ? static_cast<std::uint64_t>(pages) * static_cast<std::uint64_t>(size) / 2 : 0;
+  return std::max<std::uint64_t>(half, std::uint64_t{1} << 30);
+}
 
 ChildOutcome run_in_child(const std::function<int(int fd)>& work, double timeout_s,
-                          const std::function<void(std::string_view)>& on_data) {
+                          const std::function<void(std::string_view)>& on_data, std::uint64_t memory_bytes) {
   ChildOutcome out;
   int fds[2];
   if (::pipe(fds) != 0) {
@@ -32,6 +69,7 @@ ChildOutcome run_in_child(const std::function<int(int fd)>& work, double timeout
   }
   if (out.pid == 0) {
     ::close(fds[0]);
+    if (memory_bytes > 0) limit_memory(memory_bytes);
     const int code = work(fds[1]);
     std::fflush(nullptr);
     ::_exit(code);

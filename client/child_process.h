@@ -6,6 +6,7 @@
 
 #include <sys/types.h>
 
+#include <cstdint>
 #include <functional>
 #include <string>
 #include <string_view>
@@ -26,9 +27,21 @@ struct ChildOutcome {
 /// Forks: the child runs work(fd) (fd: the pipe's writing end) and exits
 /// with its result; the parent passes every chunk the child writes to
 /// `on_data` until the pipe closes, or kills the child once `timeout_s`
-/// seconds have passed (0: no deadline), and reaps it.
+/// seconds have passed (0: no deadline), and reaps it. The child may take
+/// `memory_bytes` of address space beyond what it was forked with (0: no
+/// limit; RLIMIT_AS, so that an allocation past it fails as out of memory
+/// in the child alone). Sanitizer builds set no limit: their shadow memory
+/// is address space too.
 ChildOutcome run_in_child(const std::function<int(int fd)>& work, double timeout_s,
-                          const std::function<void(std::string_view)>& on_data);
+                          const std::function<void(std::string_view)>& on_data, std::uint64_t memory_bytes = 0);
+
+/// The default limit of a model reader's memory: half the machine's
+/// memory, at least 1 GiB.
+std::uint64_t default_child_memory_bytes();
+
+/// Whether run_in_child can limit memory in this build (not under the
+/// sanitizers).
+bool child_memory_limits();
 
 /// "signal 11 (SIGSEGV)".
 std::string signal_text(int sig);

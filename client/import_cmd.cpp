@@ -66,7 +66,7 @@ namespace {
 /// The import itself and the files written, in the child process; the
 /// reading of every model is announced on `progress_fd` ("<path>\n").
 int import_and_write(const ImportArgs& args, import::ImportOptions options, const int grid[3],
-                     const std::string& names_out, int progress_fd);
+                     const std::string& names_out, std::uint64_t memory, int progress_fd);
 
 /// Runs import_and_write in a child process and waits for it at most
 /// args.timeout seconds. assimp reads files voxvis does not control, and a
@@ -109,17 +109,24 @@ int run_import(const ImportArgs& args) {
                                      number_text(args.margin));
   if (args.scene_out.empty() || args.scene_out == "-")
     return arg_error("--scene-out", "must name a file (the names table goes beside it)");
+  if (args.names_out.empty() && is_device_or_fifo(args.scene_out))
+    return arg_error("--names-out", "is needed when --scene-out is a device or a FIFO (" + args.scene_out +
+                                        "): the names table's path is otherwise made from it");
   const std::string names_out = args.names_out.empty() ? names_path_for(args.scene_out) : args.names_out;
   if (names_out == args.scene_out) return arg_error("--names-out", "must differ from --scene-out");
   if (!std::isfinite(args.timeout) || args.timeout < 0.0)
     return arg_error("--timeout", "must be a number of seconds >= 0 (0: no limit), got " + number_text(args.timeout));
+  if (args.max_memory_mib && (!std::isfinite(*args.max_memory_mib) || *args.max_memory_mib < 0.0 ||
+                              *args.max_memory_mib > 1048576.0))
+    return arg_error("--max-memory-mib", "must be a number of MiB in [0, 1048576] (0: no limit), got " +
+                                             number_text(*args.max_memory_mib));
   return supervise(args, options, grid, names_out);
 }
 
 namespace {
 
 int import_and_write(const ImportArgs& args, import::ImportOptions options, const int grid[3],
-                     const std::string& names_out, int progress_fd) {
+                     const std::string& names_out, std::uint64_t memory, int progress_fd) {
   // The outputs are opened before the (possibly slow) import, so that a bad
   // path fails at once; they are written whole or not at all.
   std::string message;
@@ -137,7 +144,11 @@ int import_and_write(const ImportArgs& args, import::ImportOptions options, cons
   import::ImportResult result;
   if (const Status st = import::import_files(args.models, options, &result); !st) {
     if (st.code == Status::Code::ResourceExhausted) {
-      std::fprintf(stderr, "voxvis: error: %s\n", st.str().c_str());
+      const std::string limit = memory > 0 && child_memory_limits()
+                                    ? " (the model reader may take " + std::to_string(memory >> 20) +
+                                          " MiB: --max-memory-mib)"
+                                    : "";
+      std::fprintf(stderr, "voxvis: error: %s%s\n", st.str().c_str(), limit.c_str());
       return kExitInternal;
     }
     return report_message(st.str());
@@ -212,15 +223,22 @@ int import_and_write(const ImportArgs& args, import::ImportOptions options, cons
   return kExitOk;
 }
 
+/// The model reader's memory limit, bytes (0: none).
+std::uint64_t memory_limit(const ImportArgs& args) {
+  if (!args.max_memory_mib) return default_child_memory_bytes();
+  return static_cast<std::uint64_t>(*args.max_memory_mib * 1048576.0);
+}
+
 int supervise(const ImportArgs& args, const import::ImportOptions& options, const int grid[3],
               const std::string& names_out) {
+  const std::uint64_t memory = memory_limit(args);
   // The file being read: the last line the child announced.
   std::string announced, current = args.models.empty() ? std::string() : args.models.front();
   const ChildOutcome child = run_in_child(
       [&](int fd) {
         int code = kExitInternal;
         try {
-          code = import_and_write(args, options, grid, names_out, fd);
+          code = import_and_write(args, options, grid, names_out, memory, fd);
         } catch (const std::exception& e) {
           std::fprintf(stderr, "voxvis: internal error: %s\n", e.what());
         }
@@ -231,7 +249,8 @@ int supervise(const ImportArgs& args, const import::ImportOptions& options, cons
         announced.append(chunk);
         for (std::size_t nl; (nl = announced.find('\n')) != std::string::npos; announced.erase(0, nl + 1))
           current = announced.substr(0, nl);
-      });
+      },
+      memory);
   if (!child.error.empty()) return report_message("cannot start the import: " + child.error);
   if (child.exited()) return child.exit_code();
   // The child died: its temporaries (OutputFile's "<path>.tmp-<pid>") go.
@@ -246,9 +265,13 @@ int supervise(const ImportArgs& args, const import::ImportOptions& options, cons
   if (sig == SIGKILL)
     return report(FormatError{current, 0, "", "the import was killed (" + signal_text(sig) +
                                                   "), most likely for running out of memory on this file"});
+  const std::string memory_note = memory > 0 && child_memory_limits()
+                                      ? ", or needs more than the " + std::to_string(memory >> 20) +
+                                            " MiB it may take (--max-memory-mib)"
+                                      : "";
   return report(FormatError{current, 0, "",
                             "the model reader crashed on this file (" + signal_text(sig) +
-                                "): it is malformed, or uses a feature the reader (assimp) mishandles"});
+                                "): it is malformed, uses a feature the reader (assimp) mishandles" + memory_note});
 }
 
 }  // namespace

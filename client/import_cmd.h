@@ -21,6 +21,9 @@ struct ImportArgs {
   std::optional<double> voxel_size;   ///< World units; the grid follows from the bounds.
   double margin = 0.02;               ///< Bounds' margin per side, a fraction of the largest extent.
   double timeout = 600.0;             ///< Seconds the import may take; 0: no limit.
+  /// MiB of memory the model reader may take (0: no limit); unset: half the
+  /// machine's memory, at least 1 GiB (default_child_memory_bytes).
+  std::optional<double> max_memory_mib;
   bool quiet = false;
 };
 

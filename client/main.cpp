@@ -336,6 +336,11 @@ int run(int argc, char** argv) {
                          "stopped with an error naming the file")
       ->type_name("SECONDS")
       ->capture_default_str();
+  import_cmd->add_option_function<double>(
+                "--max-memory-mib", [&imp](const double& v) { imp.max_memory_mib = v; },
+                "Memory the model reader may take, MiB (0: no limit; default: half the machine's memory, at least "
+                "1024); a file that needs more is an error naming it, not a process the system kills")
+      ->type_name("MIB");
   import_cmd->add_flag("-q,--quiet", imp.quiet, "No progress or summary on stderr");
   import_cmd->footer(
       "Ids are given in a stable order: files as listed, nodes depth first (children in\n"

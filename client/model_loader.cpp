@@ -102,14 +102,16 @@ Status load_isolated(const std::string& path, const std::string& name, double ti
         child(fd, path, name);
         return 0;
       },
-      timeout_s, [&](std::string_view chunk) { data.append(chunk); });
+      timeout_s, [&](std::string_view chunk) { data.append(chunk); }, default_child_memory_bytes());
   if (!c.error.empty()) return Status::Error(path, "cannot start the model reader: " + c.error);
   if (c.timed_out)
     return Status::Error(path, "no result after " + number_text(timeout_s) +
                                    " s: the model reader is stuck on this file (a malformed file can make it loop)");
   if (c.signal() != 0)
     return Status::Error(path, "the model reader crashed on this file (" + signal_text(c.signal()) +
-                                   "): it is malformed, or uses a feature the reader (assimp) mishandles");
+                                   "): it is malformed, uses a feature the reader (assimp) mishandles, or needs "
+                                   "more than the " + std::to_string(default_child_memory_bytes() >> 20) +
+                                   " MiB a model reader may take");
   Status st;
   if (!decode(data, &st, out)) return Status::Error(path, "the model reader ended without an answer");
   return st;

@@ -15,6 +15,8 @@
 // vertices, after the placement, and every triangle dropped is counted.
 #include "voxvis/import.h"
 
+#include "model_folder_io.h"
+
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -424,14 +426,20 @@ class ReadProgress : public Assimp::ProgressHandler {
   std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
 };
 
-/// Installs a progress handler for one read; the importer gives it back
-/// (without deleting it: it is the caller's) when the guard goes.
+/// Installs a progress handler and a file system for one read; the importer
+/// gives them back (without deleting them: they are the caller's) when the
+/// guard goes.
 class ProgressGuard {
  public:
-  ProgressGuard(Assimp::Importer& importer, Assimp::ProgressHandler* handler) : importer_(importer) {
+  ProgressGuard(Assimp::Importer& importer, Assimp::ProgressHandler* handler, Assimp::IOSystem* files)
+      : importer_(importer) {
     importer_.SetProgressHandler(handler);
+    importer_.SetIOHandler(files);
   }
-  ~ProgressGuard() { importer_.SetProgressHandler(nullptr); }
+  ~ProgressGuard() {
+    importer_.SetProgressHandler(nullptr);
+    importer_.SetIOHandler(nullptr);
+  }
   ProgressGuard(const ProgressGuard&) = delete;
   ProgressGuard& operator=(const ProgressGuard&) = delete;
 
@@ -449,12 +457,19 @@ Status import_one(Assimp::Importer& importer, const std::string& path, const Imp
   const auto start = std::chrono::steady_clock::now();
   if (options.progress) options.progress("reading " + path + " (" + size_text(std::filesystem::file_size(path, ec)) + ")");
   ReadProgress read_progress(options, path);
+  ModelFolderIO files(path);
   const aiScene* scene = nullptr;
   {
-    const ProgressGuard guard(importer, &read_progress);
+    const ProgressGuard guard(importer, &read_progress, &files);
     scene = importer.ReadFile(path, post_processing());
   }
-  if (scene == nullptr) return fail(path, std::string("cannot import: ") + importer.GetErrorString());
+  if (scene == nullptr && !files.refused().empty()) return fail(path, "cannot import: " + files.refused());
+  if (scene == nullptr) {
+    // assimp catches an allocation that failed and says so in its error.
+    const std::string error = importer.GetErrorString();
+    if (error.find("bad_alloc") != std::string::npos) return Status::Exhausted(path, "out of memory while importing");
+    return fail(path, "cannot import: " + error);
+  }
   const std::size_t before = out->objects.size();
   const ImportStats stats_before = out->stats;
   const Status st = convert(scene, path, options, used, out);

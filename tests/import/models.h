@@ -42,16 +42,21 @@ inline std::string base64(const std::vector<std::uint8_t>& bytes) {
 /// triangle (0,0,0) (1,0,0) (0,1,0); mesh 1 "Quad", two primitives, the
 /// triangles (0,0,0) (1,0,0) (1,1,0) and (0,0,0) (1,1,0) (0,1,0). `nodes`
 /// is the JSON array of nodes, `roots` that of the scene's root nodes.
-inline std::string gltf_with_nodes(const std::string& nodes, const std::string& roots) {
-  std::vector<std::uint8_t> buf;
-  const auto put = [&](const void* p, std::size_t n) {
-    const auto* b = static_cast<const std::uint8_t*>(p);
-    buf.insert(buf.end(), b, b + n);
-  };
+/// The 72 bytes of the glTF documents' one buffer: the corners (48), then
+/// three index lists of three, each padded to 8 bytes (24).
+inline std::vector<std::uint8_t> gltf_buffer() {
   const float corners[4][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
-  put(corners, sizeof corners);  // 48 bytes
-  const std::uint16_t idx[12] = {0, 1, 3, 0, 0, 1, 2, 0, 0, 2, 3, 0};  // three lists of 3, each padded to 8 bytes
-  put(idx, sizeof idx);                                                  // 24 bytes
+  const std::uint16_t idx[12] = {0, 1, 3, 0, 0, 1, 2, 0, 0, 2, 3, 0};
+  std::vector<std::uint8_t> buf(sizeof corners + sizeof idx);
+  std::memcpy(buf.data(), corners, sizeof corners);
+  std::memcpy(buf.data() + sizeof corners, idx, sizeof idx);
+  return buf;
+}
+
+/// gltf_with_nodes, its buffer at `uri` (a data URI by default; a file's
+/// path relative to the document, to test external references).
+inline std::string gltf_with_nodes(const std::string& nodes, const std::string& roots, const std::string& uri = "") {
+  const std::string buffer_uri = uri.empty() ? "data:application/octet-stream;base64," + base64(gltf_buffer()) : uri;
   return R"({
   "asset": {"version": "2.0"},
   "scene": 0,
@@ -62,7 +67,7 @@ inline std::string gltf_with_nodes(const std::string& nodes, const std::string& 
     {"name": "Quad", "primitives": [{"attributes": {"POSITION": 0}, "indices": 2},
                                     {"attributes": {"POSITION": 0}, "indices": 3}]}
   ],
-  "buffers": [{"byteLength": 72, "uri": "data:application/octet-stream;base64,)" + base64(buf) + R"("}],
+  "buffers": [{"byteLength": 72, "uri": ")" + buffer_uri + R"("}],
   "bufferViews": [
     {"buffer": 0, "byteOffset": 0, "byteLength": 48, "target": 34962},
     {"buffer": 0, "byteOffset": 48, "byteLength": 24, "target": 34963}

@@ -7,8 +7,13 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cstdio>
 #include <filesystem>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -261,6 +266,91 @@ TEST_F(ImportCli, AReaderThatHangsOrCrashesIsStoppedNamingTheFile) {
   EXPECT_THAT(r.err, HasSubstr("voxvis: error: " + path("crash.gltf") + ": "));
   EXPECT_FALSE(std::filesystem::exists(path("s.json")));
   EXPECT_EQ(files(), (std::vector<std::string>{"crash.gltf", "hang.ply"}));
+}
+
+// Before: a glTF's external buffer "../secret.bin" was read from outside the
+// model's folder (absolute paths and URLs were already refused by assimp).
+// A model reads the files of its own folder and below it, regular files
+// only; the error names the reference.
+TEST_F(ImportCli, ExternalReferencesStayInsideTheModelsFolder) {
+  const std::string nodes = R"([{"name": "Wall", "mesh": 1}])";
+  std::filesystem::create_directories(path("model/bin"));
+  const std::vector<std::uint8_t> data = gltf_buffer();
+  const std::string bytes(data.begin(), data.end());
+  spit(path("model/bin/data.bin"), bytes);
+  spit(path("secret.bin"), bytes);
+  // Beside it and below it: read.
+  spit(path("model/inside.gltf"), gltf_with_nodes(nodes, "[0]", "bin/data.bin"));
+  Result r = run({"import", path("model/inside.gltf"), "--scene-out", path("in.json"), "-q"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(scene("in.json").objects.size(), 1u);
+  // Through "..": refused, naming the reference and the folder.
+  spit(path("model/up.gltf"), gltf_with_nodes(nodes, "[0]", "../secret.bin"));
+  r = run({"import", path("model/up.gltf"), "--scene-out", path("up.json")});
+  expect_refused(r, path("model/up.gltf") + ": cannot import: the model refers to '");
+  EXPECT_THAT(r.err, HasSubstr("../secret.bin', which lies outside the model's folder (" +
+                               std::filesystem::canonical(path("model")).string() + ")"));
+  // "bin/../../secret.bin" and a link in the folder to a file outside it.
+  spit(path("model/twisted.gltf"), gltf_with_nodes(nodes, "[0]", "bin/../../secret.bin"));
+  r = run({"import", path("model/twisted.gltf"), "--scene-out", path("up.json")});
+  expect_refused(r, "which lies outside the model's folder");
+  std::filesystem::create_symlink(path("secret.bin"), path("model/link.bin"));
+  spit(path("model/linked.gltf"), gltf_with_nodes(nodes, "[0]", "link.bin"));
+  r = run({"import", path("model/linked.gltf"), "--scene-out", path("up.json")});
+  expect_refused(r, "link.bin', which lies outside the model's folder");
+  // A FIFO in the folder would never end: not a regular file.
+  ASSERT_EQ(::mkfifo(path("model/pipe.bin").c_str(), 0600), 0);
+  spit(path("model/piped.gltf"), gltf_with_nodes(nodes, "[0]", "pipe.bin"));
+  r = run({"import", path("model/piped.gltf"), "--scene-out", path("up.json"), "--timeout", "20"});
+  expect_refused(r, "pipe.bin', which is not a regular file");
+  EXPECT_LT(r.seconds, 15.0);
+  EXPECT_FALSE(std::filesystem::exists(path("up.json")));
+}
+
+// A scene written to a FIFO (or a device): its names table's path cannot be
+// made from it, so it must be given; then both are written, the FIFO in place.
+TEST_F(ImportCli, AFifoOutputIsWrittenInPlaceWithItsNamesTableNamed) {
+  spit(path("level.gltf"), level_gltf());
+  ASSERT_EQ(::mkfifo(path("scene.fifo").c_str(), 0600), 0);
+  Result r = run({"import", path("level.gltf"), "--scene-out", path("scene.fifo")});
+  expect_refused(r, "--names-out: is needed when --scene-out is a device or a FIFO (" + path("scene.fifo") + ")");
+  std::string read;
+  std::thread reader([&] { read = slurp(path("scene.fifo")); });
+  r = run({"import", path("level.gltf"), "--scene-out", path("scene.fifo"), "--names-out", path("n.json"), "-q"});
+  reader.join();
+  EXPECT_EQ(r.status, 0) << r.err;
+  EXPECT_THAT(read, HasSubstr("\"format\": \"voxvis-scene/1\""));
+  EXPECT_TRUE(std::filesystem::exists(path("n.json")));
+  struct stat st{};
+  ASSERT_EQ(::lstat(path("scene.fifo").c_str(), &st), 0);
+  EXPECT_TRUE(S_ISFIFO(st.st_mode)) << "still a FIFO";
+}
+
+// Before: a 2 GB sparse model was read whole by the child (2 GB resident);
+// --timeout bounded its time, nothing its memory. --max-memory-mib does.
+TEST_F(ImportCli, TheModelReaderHasAMemoryLimit) {
+#if defined(__SANITIZE_ADDRESS__)
+  GTEST_SKIP() << "sanitizer builds set no memory limit (their shadow memory is address space too)";
+#endif
+  // A 1 GiB STL of zeros (sparse: no disk), which assimp reads whole.
+  const std::string big = path("big.stl");
+  {
+    std::FILE* f = std::fopen(big.c_str(), "wb");
+    ASSERT_NE(f, nullptr);
+    ASSERT_EQ(::ftruncate(::fileno(f), std::int64_t{1} << 30), 0);
+    std::fclose(f);
+  }
+  Result r = run({"import", big, "--scene-out", path("s.json"), "--max-memory-mib", "200", "--timeout", "60"});
+  EXPECT_NE(r.status, 0) << r.err;
+  EXPECT_EQ(r.signal, 0) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("voxvis: error: " + big + ": "));
+  EXPECT_THAT(r.err, HasSubstr("200 MiB"));
+  EXPECT_THAT(r.err, HasSubstr("--max-memory-mib"));
+  EXPECT_FALSE(std::filesystem::exists(path("s.json")));
+  for (const char* bad : {"-1", "nan", "1e300"}) {
+    r = run({"import", path("big.stl"), "--scene-out", path("s.json"), "--max-memory-mib", bad});
+    expect_refused(r, "--max-memory-mib: must be a number of MiB in [0, 1048576]");
+  }
 }
 
 }  // namespace
