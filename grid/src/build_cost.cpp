@@ -5,6 +5,7 @@
 // the description does. The count stops as soon as its figure passes the
 // limit it is checked against.
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -55,27 +56,59 @@ struct StaticMeshEntries {
   double voxels = 0.0, bricks = 0.0, range = 0.0;
 };
 
+/// A triangle whose box holds at most this many voxels has them marked
+/// (a fine mesh's neighbours share most of theirs); a larger one is counted
+/// by its bound.
+constexpr double kMarkedBox = 64.0;
+
 bool static_mesh_entries(const Scene::Impl& s, const Obj& o, BuildMeter& meter, StaticMeshEntries* out) {
   const GridMesh gm(s, o);
   const double grow = std::fmax(gm.grow.x, std::fmax(gm.grow.y, gm.grow.z));
   const bool buffer = s.options.occlusion_buffer > 0;
   glm::ivec3 r0(s.res), r1(-1);
-  std::size_t n = 0;
   for (const auto& t : o.mesh->triangles) {
-    if (++n % 1024 == 0 && !meter.tick(1024)) return false;
+    glm::ivec3 v0, v1;
+    if (!gm.cell_range(t, 1, s.res, &v0, &v1)) continue;
+    r0 = glm::min(r0, v0);
+    r1 = glm::max(r1, v1);
+  }
+  out->range = detail::cells_of(r0, r1);
+  if (out->range == 0.0) return meter.tick(o.mesh->triangles.size() + 1);
+  // The small triangles' boxes marked in a bitset over the range (the
+  // build's own mark, build_parts.h: mesh_voxels, is charged the same);
+  // the large ones' bounds summed.
+  const glm::ivec3 n = r1 - r0 + 1;
+  const auto bits = static_cast<std::uint64_t>(out->range);
+  std::vector<std::uint64_t> marked((bits + 63) / 64, 0);
+  double large = 0.0;
+  std::size_t count = 0;
+  for (const auto& t : o.mesh->triangles) {
+    if (++count % 1024 == 0 && !meter.tick(1024)) return false;
     glm::ivec3 v0, v1;
     if (!gm.cell_range(t, 1, s.res, &v0, &v1)) continue;
     const Vec3 &a = gm.g[t[0]], &b = gm.g[t[1]], &c = gm.g[t[2]];
-    out->voxels += std::fmin(detail::cells_of(v0, v1), detail::cells_touched_bound(a, b, c, 1.0, grow));
-    r0 = glm::min(r0, v0);
-    r1 = glm::max(r1, v1);
+    const double box = detail::cells_of(v0, v1);
+    if (box <= kMarkedBox) {
+      for (int z = v0.z; z <= v1.z; ++z)
+        for (int y = v0.y; y <= v1.y; ++y)
+          for (int x = v0.x; x <= v1.x; ++x) {
+            const auto i = static_cast<std::uint64_t>(x - r0.x) +
+                           static_cast<std::uint64_t>(n.x) * (static_cast<std::uint64_t>(y - r0.y) +
+                                                              static_cast<std::uint64_t>(n.y) *
+                                                                  static_cast<std::uint64_t>(z - r0.z));
+            marked[i >> 6] |= std::uint64_t{1} << (i & 63);
+          }
+    } else {
+      large += std::fmin(box, detail::cells_touched_bound(a, b, c, 1.0, grow));
+    }
     if (buffer && gm.cell_range(t, 1 << detail::kBrickShift, s.res, &v0, &v1))
       out->bricks += std::fmin(detail::cells_of(v0, v1),
                                detail::cells_touched_bound(a, b, c, 1 << detail::kBrickShift, grow));
   }
-  out->range = detail::cells_of(r0, r1);
-  out->voxels = std::fmin(out->voxels, out->range);
-  return meter.tick(o.mesh->vertices.size() + 1);
+  double small = 0.0;
+  for (const std::uint64_t w : marked) small += static_cast<double>(std::popcount(w));
+  out->voxels = std::fmin(small + large, out->range);
+  return meter.tick(o.mesh->vertices.size() + marked.size() + 1);
 }
 
 /// A whole number of bytes (or entries) from a bound, saturating.

@@ -186,9 +186,14 @@ void Collector::render_mesh(const Obj& o) {
   const ScopedTicks timed(w_.render_ticks);
   const ObjectDesc d = o.mesh_desc();
   const Mesh& mesh = *o.mesh;
+  // A mesh whose every triangle would be dropped as under a pixel (its
+  // ball, radius and allowance, is) places no vertex.
+  const bool triangles = !w_.ob.ball_below_a_pixel(o.center, o.half.x);
   std::vector<Vec3>& p = w_.placed;
-  p.resize(mesh.vertices.size());
-  for (std::size_t i = 0; i < p.size(); ++i) p[i] = place(d, mesh.vertices[i]);
+  if (triangles) {
+    p.resize(mesh.vertices.size());
+    for (std::size_t i = 0; i < p.size(); ++i) p[i] = place(d, mesh.vertices[i]);
+  }
   if (o.interior && model_tip_clear(o)) {
     // Its interior, as oriented boxes where it is (docs/design.md, "Meshes").
     const Quat q = o.mesh_rotation;
@@ -197,7 +202,7 @@ void Collector::render_mesh(const Obj& o) {
     for (const ModelInterior::Box& b : o.interior->boxes)
       if (w_.ob.render_oriented_box(place(d, b.center), axes, o.mesh_scale * b.half, err)) ++st_.ob_occluders;
   }
-  const std::uint32_t n = static_cast<std::uint32_t>(mesh.triangles.size());
+  const std::uint32_t n = triangles ? static_cast<std::uint32_t>(mesh.triangles.size()) : 0;
   for (std::uint32_t t = 0; t < n; ++t) {
     const std::uint32_t partner = o.quads->partner[t];
     if (partner == MeshQuads::kNone || partner > t) render_triangle_of(o, p.data(), t);

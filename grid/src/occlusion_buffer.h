@@ -158,6 +158,11 @@ class OcclusionBuffer {
   /// along an axis is linear in it). `err` bounds the error of the centre
   /// and the half extents (world units).
   bool render_oriented_box(const Vec3& center, const Vec3 axes[3], const Vec3& half, double err = 0.0);
+  /// Whether every triangle within the ball (world units) is one
+  /// render_triangle would drop as under 1.5 pixels across: its vertices are
+  /// at most 2 radius apart per axis, at depths of at least the ball's
+  /// nearest. So a mesh far enough away costs no vertex placed.
+  bool ball_below_a_pixel(const Vec3& center, double radius) const;
   /// Renders a triangle (world units) as an occluder: the part of it
   /// beyond the near plane, a planar convex polygon of at most four
   /// vertices, shrunk by its rounding allowance, at its plane's depth

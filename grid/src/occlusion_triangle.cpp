@@ -164,6 +164,14 @@ bool OcclusionBuffer::below_a_pixel(const Vec3* v, int n) const {
   return 1.7320508075688772 * extent / zmin * (0.5 * w_ * inv_tan_x_) < 1.5;
 }
 
+bool OcclusionBuffer::ball_below_a_pixel(const Vec3& center, double radius) const {
+  // below_a_pixel's test with the ball's extent and nearest depth, a part
+  // in a billion short of its limit for the roundings of either.
+  const double zmin = glm::dot(f_, center - eye_) - radius;
+  if (!(zmin > near_)) return false;
+  return 1.7320508075688772 * (2.0 * radius) / zmin * (0.5 * w_ * inv_tan_x_) < 1.5 * (1.0 - 1e-9);
+}
+
 bool OcclusionBuffer::fill_polygon(Vec3* q, int nq, const PixelAffine* planes, int np, double depth_err, double mag,
                                    double err) {
   // Shrunk towards its centroid by the rounding allowance: scaling by

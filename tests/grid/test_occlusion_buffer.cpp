@@ -101,6 +101,34 @@ TEST(OcclusionBuffer, TrianglesHideWhatLiesBehindThem) {
   EXPECT_FALSE(edge.hides_world(Vec3(-0.1, -0.1, -30), Vec3(0.1, 0.1, -29)));
 }
 
+// A dynamic mesh whose ball is under a pixel places no vertex
+// (Collector::render_mesh): every triangle in such a ball must be one the
+// buffer would have dropped anyway, so that skipping them changes nothing.
+TEST(OcclusionBuffer, TrianglesInABallBelowAPixelWriteNothing) {
+  Rng rng(17);
+  int below = 0, above = 0;
+  for (int k = 0; k < scaled(400); ++k) {
+    OcclusionBuffer ob = begin(look_down_z(rng.uniform(20.0, 120.0)), 160);
+    const Vec3 centre(rng.uniform(-30.0, 30.0), rng.uniform(-30.0, 30.0), -rng.uniform(0.5, 200.0));
+    const double radius = std::exp(rng.uniform(std::log(1e-3), std::log(5.0)));
+    if (!ob.ball_below_a_pixel(centre, radius)) {
+      ++above;
+      continue;
+    }
+    ++below;
+    for (int t = 0; t < 20; ++t) {
+      Vec3 v[3];
+      for (Vec3& p : v) p = centre + radius * rng.unit_vector() * std::sqrt(rng.uniform(0.0, 1.0));
+      EXPECT_FALSE(ob.render_triangle(v[0], v[1], v[2])) << "ball " << k << " triangle " << t;
+    }
+  }
+  EXPECT_GT(below, 20);
+  EXPECT_GT(above, 20);
+  // A ball reaching the near plane is never skipped.
+  const OcclusionBuffer ob = begin(look_down_z(), 160);
+  EXPECT_FALSE(ob.ball_below_a_pixel(Vec3(0.0, 0.0, -0.1005), 0.001));
+}
+
 TEST(OcclusionBuffer, TrianglesCrossingTheNearPlaneOccludeWithTheirFarPart) {
   // A triangle from behind the eye to far ahead, under a camera with near
   // 1: it occludes what lies behind its part beyond the near plane, and its

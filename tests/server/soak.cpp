@@ -47,6 +47,9 @@ const char* const kExtremeCamera = "GetPvs extreme camera";
 const char* const kCameraBeyond = "GetPvs camera beyond bounds";
 const char* const kExtremeView = "View extreme cameras";
 const char* const kHugeCreate = "CreateScene huge footprint";
+const char* const kMeshCreate = "CreateScene hostile meshes";
+const char* const kRebalance = "voxvis rebalance during moves";
+const char* const kMoveExport = "ExportScene of a served scene for a move";
 const char* const kBurst = "View burst of new streams";
 const char* const kTickEntries = "Tick bad entries";
 const char* const kTickBadRequest = "Tick bad t or number";
@@ -470,6 +473,101 @@ void huge_creates(const Soak& s) {
     *req.mutable_description() = huge;
     v1::SceneInfo info;
     s.tally.record(kHugeCreate, admin.stub().CreateScene(&ctx, req, &info));
+  });
+}
+
+// One static mesh of `copies` copies of a triangle with legs of `leg` units
+// in a 64^3 grid: the mesh builds whose cost the estimate once missed.
+v1::SceneDescription copied_triangles(int copies, double leg) {
+  SceneDesc d;
+  d.bounds_min = Vec3(0.0);
+  d.bounds_max = Vec3(100.0);
+  d.grid = glm::ivec3(64);
+  auto m = std::make_shared<Mesh>();
+  for (int i = 0; i < copies; ++i) {
+    const auto k = static_cast<std::uint32_t>(m->vertices.size());
+    m->vertices.push_back(Vec3(5.0));
+    m->vertices.push_back(Vec3(5.0 + leg, 5.0, 5.0 + 0.3 * leg));
+    m->vertices.push_back(Vec3(5.0, 5.0 + leg, 5.0 + 0.6 * leg));
+    m->triangles.push_back({k, k + 1, k + 2});
+  }
+  ObjectDesc o;
+  o.id = 1;
+  o.shape = Shape::Mesh;
+  o.mesh = m;
+  d.objects.push_back(o);
+  v1::SceneDescription wire;
+  to_proto(d, &wire);
+  return wire;
+}
+
+// Mesh creates that once escaped the budget or held the build thread: many
+// copies of a large triangle (built within the budget, then deleted), of a
+// small one, and a mesh placed so often that its saved file is too large
+// (refused at once); every other one with a deadline of 0.3 s.
+void mesh_creates(const Soak& s) {
+  s.tally.expect(kMeshCreate, {C::OK, C::RESOURCE_EXHAUSTED, C::DEADLINE_EXCEEDED, C::CANCELLED});
+  // 5,000 triangles on three vertices, placed 20,000 times: a small
+  // message whose saved file would be about 1.5 GB.
+  v1::SceneDescription instanced = copied_triangles(1, 1.0);
+  for (int k = 1; k < 5000; ++k)
+    for (std::uint32_t v : {0u, 1u, 2u}) instanced.mutable_meshes(0)->add_triangles(v);
+  for (int i = 1; i < 20000; ++i) {
+    v1::Object* o = instanced.add_objects();
+    *o = instanced.objects(0);
+    o->set_id(static_cast<std::uint32_t>(i + 1));
+  }
+  const v1::SceneDescription cases[] = {copied_triangles(400, 90.0), copied_triangles(20000, 1.0), instanced};
+  s.loop(40, [&](int round) {
+    const Api admin = s.api();
+    const std::string id = "mesh-" + std::to_string(round);
+    grpc::ClientContext ctx;
+    admin.prepare(&ctx, round % 2 ? Seconds(0.3) : Seconds(60));
+    v1::CreateSceneRequest req;
+    req.set_scene_id(id);
+    *req.mutable_description() = cases[static_cast<std::size_t>(round) % std::size(cases)];
+    v1::SceneInfo info;
+    const grpc::Status st = admin.stub().CreateScene(&ctx, req, &info);
+    s.tally.record(kMeshCreate, st);
+    if (st.ok() && !admin.delete_scene(id).ok()) s.tally.note(kMeshCreate, "a mesh scene created could not be deleted");
+  });
+}
+
+// voxvis rebalance beside the simulation's moves: a second server, shard b
+// of [a, b], against the soak's (no --shard: it serves every scene as its
+// own). Every scene b owns is reported and left where it is (exit 2), never
+// moved while it is served; the server enforces it on a move's export and
+// delete of the viewer's scene too (FAILED_PRECONDITION).
+void rebalances(const Soak& s) {
+  s.tally.expect(kRebalance, {C::OK, C::FAILED_PRECONDITION});
+  s.tally.expect(kMoveExport, {C::FAILED_PRECONDITION});
+  ServerProcess target({"--shard", "b", "--fleet", "a,b"});
+  if (!target.start()) {
+    s.tally.note(kRebalance, "the second server did not start");
+    return;
+  }
+  const std::string servers = "a=" + s.server.address() + ",b=" + target.address();
+  const std::string token_file = target.path("admin-token");
+  spit(token_file, s.options.admin_token + "\n");
+  s.loop(20, [&](int) {
+    const ProcessResult r = run_program({VOXVIS_CLI, "rebalance", "--servers", servers, "--token-file", token_file},
+                                        target.dir(), Seconds(60));
+    s.tally.record(kRebalance, r.status == 0   ? grpc::Status::OK
+                               : r.status == 2 ? grpc::Status(grpc::StatusCode::FAILED_PRECONDITION, r.err)
+                                               : grpc::Status(grpc::StatusCode::UNKNOWN, r.err));
+    if (r.status == 2 && r.err.find("left there") == std::string::npos)
+      s.tally.note(kRebalance, "exit 2 without a scene left: " + r.err);
+    std::vector<std::string> on_b;
+    if (target.api().list_scenes(&on_b).ok() && !on_b.empty())
+      s.tally.note(kRebalance, "a scene the soak server serves was moved to " + on_b.front());
+    const Api admin = s.api();
+    grpc::ClientContext ctx;
+    admin.prepare(&ctx, Seconds(10));
+    v1::ExportSceneRequest req;
+    req.set_scene_id(kScene);
+    req.set_only_if_misplaced(true);
+    v1::ExportSceneResponse out;
+    s.tally.record(kMoveExport, admin.stub().ExportScene(&ctx, req, &out));
   });
 }
 
@@ -1012,7 +1110,8 @@ const Loop kLoops[] = {{"bad-times", bad_times},     {"bad-ids", bad_ids},
                        {"simulations", simulations}, {"races", races},
                        {"malformed", malformed},     {"cameras", cameras},
                        {"huge-creates", huge_creates}, {"stream-bursts", stream_bursts},
-                       {"tick-streams", tick_streams}, {"hostile-ticks", hostile_ticks}};
+                       {"tick-streams", tick_streams}, {"hostile-ticks", hostile_ticks},
+                       {"mesh-creates", mesh_creates}, {"rebalances", rebalances}};
 
 double mib(long kib) { return static_cast<double>(kib) / 1024.0; }
 

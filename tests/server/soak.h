@@ -30,6 +30,12 @@
 //    the last is sent, streams cancelled mid-tick or left to their deadline,
 //    moves of unknown or static objects or to bad centres, moves with a
 //    viewer's token;
+//  * mesh creates that once escaped the memory budget or held the build
+//    thread (copies of a large triangle, of a small one, a mesh placed too
+//    often for its saved file), half of them with a 0.3 s deadline;
+//  * `voxvis rebalance` against a second server (shard b of [a, b]) while
+//    the simulations move the viewer's scene: nothing it serves is moved,
+//    and a move's export of it is refused;
 //  * the server's RSS, sampled every `sample_period`.
 // Outcomes are counted by kind and status code; a code outside a kind's
 // expected set is kept (with its message) as unexpected. Every set admits
@@ -52,7 +58,8 @@ namespace voxvis::servertest {
 
 /// The names of the loops of the mix: bad-times, bad-ids, floods, view-drops,
 /// simulations, races, malformed, cameras, huge-creates, stream-bursts,
-/// tick-streams (the well-behaved ones), hostile-ticks.
+/// tick-streams (the well-behaved ones), hostile-ticks, mesh-creates,
+/// rebalances.
 std::vector<std::string> all_hostile_loops();
 
 struct SoakOptions {
