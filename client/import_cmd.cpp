@@ -255,7 +255,7 @@ int supervise(const ImportArgs& args, const import::ImportOptions& options, cons
   if (child.exited()) return child.exit_code();
   // The child died: its temporaries (OutputFile's "<path>.tmp-<pid>") go.
   for (const std::string& out : {args.scene_out, names_out})
-    std::remove((out + ".tmp-" + std::to_string(static_cast<long>(child.pid))).c_str());
+    std::remove((renamed_path(out) + ".tmp-" + std::to_string(static_cast<long>(child.pid))).c_str());
   if (child.timed_out)
     return report(FormatError{current, 0, "",
                               "no result after " + number_text(args.timeout) +

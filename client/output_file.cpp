@@ -3,7 +3,9 @@
 #include <cerrno>
 #include <csignal>
 #include <cstring>
+#include <filesystem>
 #include <string>
+#include <system_error>
 
 #include <sys/stat.h>
 #include <unistd.h>
@@ -65,6 +67,14 @@ std::string kind_of(mode_t mode) {
 
 }  // namespace
 
+std::string renamed_path(const std::string& path) {
+  struct stat st{};
+  if (::lstat(path.c_str(), &st) != 0 || !S_ISLNK(st.st_mode)) return path;
+  std::error_code ec;
+  const std::filesystem::path target = std::filesystem::weakly_canonical(path, ec);
+  return ec || target.empty() ? path : target.string();
+}
+
 bool is_device_or_fifo(const std::string& path) {
   struct stat st{};
   return ::stat(path.c_str(), &st) == 0 && (S_ISCHR(st.st_mode) || S_ISFIFO(st.st_mode));
@@ -97,8 +107,10 @@ bool OutputFile::open(const std::string& path, std::string* message) {
     return false;
   }
   install_handlers_once();
+  // A link is followed: the file it names is replaced, the link kept.
+  target_ = renamed_path(path);
   // Same directory as the target, so that rename() is atomic.
-  temp_path_ = path + ".tmp-" + std::to_string(static_cast<long>(::getpid()));
+  temp_path_ = target_ + ".tmp-" + std::to_string(static_cast<long>(::getpid()));
   register_temp(temp_path_);
   file_ = std::fopen(temp_path_.c_str(), "wb");
   if (file_ == nullptr) {
@@ -140,9 +152,9 @@ bool OutputFile::commit(std::string* message) {
     *message = "cannot write " + temp_path_ + ": " + errno_text();
   }
   file_ = nullptr;
-  if (ok && std::rename(temp_path_.c_str(), path_.c_str()) != 0) {
+  if (ok && std::rename(temp_path_.c_str(), target_.c_str()) != 0) {
     ok = false;
-    *message = "cannot rename " + temp_path_ + " to " + path_ + ": " + errno_text();
+    *message = "cannot rename " + temp_path_ + " to " + target_ + ": " + errno_text();
   }
   if (!ok) std::remove(temp_path_.c_str());
   unregister_temp(temp_path_);

@@ -3,7 +3,8 @@
 // interrupted by SIGINT/SIGTERM/SIGHUP) removes the temporary file and leaves
 // any earlier target untouched, so a file at the target path is always complete.
 //
-// A target that exists and is not a regular file is never replaced: a
+// A symbolic link is followed: the file it names is replaced, the link
+// kept. A target that exists and is not a regular file is never replaced: a
 // character device or a FIFO (/dev/null, /dev/stdout, a named pipe) is
 // written to directly, as a shell's `>` would, and so not all or nothing; a
 // directory, a socket or a block device is refused, naming what it is. Every
@@ -18,6 +19,12 @@ namespace voxvis::cli {
 
 /// Whether `path` is a character device or a FIFO (written in place).
 bool is_device_or_fifo(const std::string& path);
+
+/// The file a regular output at `path` replaces: `path`, or for a symbolic
+/// link the file it names (all links resolved), so that the link stays
+/// (`/dev/stdout` redirected to a file: that file). Its temporary file is
+/// this path + ".tmp-<pid>".
+std::string renamed_path(const std::string& path);
 
 class OutputFile {
  public:
@@ -52,7 +59,8 @@ class OutputFile {
   std::FILE* file_ = nullptr;
   bool is_stdout_ = false;
   bool direct_ = false;  // A character device or FIFO, written to in place.
-  std::string path_;
+  std::string path_;       // As named.
+  std::string target_;     // What the rename replaces (renamed_path).
   std::string temp_path_;
 };
 

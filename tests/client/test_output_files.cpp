@@ -11,6 +11,7 @@
 
 #include <filesystem>
 #include <future>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -58,6 +59,22 @@ TEST_F(OutputFiles, AFifoIsWrittenInPlace) {
   EXPECT_EQ(answers(read.get()), answers(replayed));
   EXPECT_EQ(type_of("out.fifo"), static_cast<mode_t>(S_IFIFO)) << "still a FIFO";
   EXPECT_EQ(files(), (std::vector<std::string>{"f.jsonl", "out.fifo", "s.json"})) << "no temporary file left";
+}
+
+// A link to a regular file stays a link: the file it names is replaced (as
+// /dev/stdout redirected to a file writes that file). Before, the rename
+// replaced the link itself.
+TEST_F(OutputFiles, ALinkIsFollowedAndKept) {
+  std::filesystem::create_directories(path("real"));
+  spit(path("real/out.jsonl"), "old\n");
+  std::filesystem::create_symlink(path("real/out.jsonl"), path("link.jsonl"));
+  const Result r =
+      run({"replay", "--scene", path("s.json"), "--frames", path("f.jsonl"), "--out", path("link.jsonl")});
+  EXPECT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(type_of("link.jsonl"), static_cast<mode_t>(S_IFLNK)) << "the link was replaced";
+  EXPECT_EQ(lines_of(slurp(path("real/out.jsonl"))).size(), 3u);
+  EXPECT_EQ(std::distance(std::filesystem::directory_iterator(path("real")), std::filesystem::directory_iterator()), 1)
+      << "no temporary file left beside it";
 }
 
 TEST_F(OutputFiles, DirectoriesAndSocketsAreRefusedNamingWhatTheyAre) {

@@ -242,27 +242,6 @@ TEST(SceneMemory, TheEstimateHoldsObjectsCoveringTheGridAndIsCloseThere) {
 
 // --- Meshes ---------------------------------------------------------------
 
-/// `copies` copies of one triangle with legs of `leg` world units (its own
-/// vertices each), as one static mesh in a 64^3 grid over [0, 100]^3.
-SceneDesc copied_triangle(int copies, double leg) {
-  SceneDesc d;
-  d.bounds_min = Vec3(0.0);
-  d.bounds_max = Vec3(100.0);
-  d.grid = glm::ivec3(64);
-  auto m = std::make_shared<Mesh>();
-  for (int i = 0; i < copies; ++i) {
-    const auto k = static_cast<std::uint32_t>(m->vertices.size());
-    m->vertices.push_back(Vec3(5.0));
-    m->vertices.push_back(Vec3(5.0 + leg, 5.0, 5.0 + 0.3 * leg));
-    m->vertices.push_back(Vec3(5.0, 5.0 + leg, 5.0 + 0.6 * leg));
-    m->triangles.push_back({k, k + 1, k + 2});
-  }
-  m->vertices.shrink_to_fit();  // As a description's meshes are: sized once.
-  m->triangles.shrink_to_fit();
-  d.objects.push_back(mesh_object(1, m, Vec3(0.0)));
-  return d;
-}
-
 /// The mesh scenes whose builds must stay within their estimates: the
 /// hostile ones (many copies of a large triangle, of a small one), many
 /// instances of a closed mesh (each with its interior), a soup of large
@@ -270,8 +249,8 @@ SceneDesc copied_triangle(int copies, double leg) {
 /// closed meshes (their interiors in their own frames).
 std::vector<std::pair<std::string, SceneDesc>> mesh_budget_scenes() {
   std::vector<std::pair<std::string, SceneDesc>> out;
-  out.emplace_back("2,000 copies of a large triangle", copied_triangle(scaled(2000), 90.0));
-  out.emplace_back("20,000 copies of a small triangle", copied_triangle(scaled(20000), 1.0));
+  out.emplace_back("2,000 copies of a large triangle", copied_triangle_scene(scaled(2000), 90.0));
+  out.emplace_back("20,000 copies of a small triangle", copied_triangle_scene(scaled(20000), 1.0));
   SceneDesc spheres = unit_grid(40);
   const std::shared_ptr<const Mesh> ball = icosphere(2);
   for (int i = 0; i < 200; ++i)
@@ -368,7 +347,7 @@ TEST(SceneMemory, ABuildPastItsReservationAsksForMoreAndStopsWhenRefused) {
 }
 
 TEST(SceneMemory, MeshBuildsStopWhenCancelled) {
-  const SceneDesc d = copied_triangle(2000, 90.0);
+  const SceneDesc d = copied_triangle_scene(2000, 90.0);
   for (const bool build : {false, true}) {
     int polls = 0;
     BuildControl control;

@@ -854,6 +854,17 @@ Camera look(Vec3 eye, Vec3 dir) {
   return c;
 }
 
+grpc::Status create_with_deadline(const Api& api, const std::string& id, const v1::SceneDescription& d,
+                                  Seconds timeout) {
+  grpc::ClientContext ctx;
+  api.prepare(&ctx, timeout);
+  v1::CreateSceneRequest req;
+  req.set_scene_id(id);
+  *req.mutable_description() = d;
+  v1::SceneInfo info;
+  return api.stub().CreateScene(&ctx, req, &info);
+}
+
 std::string wall_scene_json() {
   return R"({
   "format": "voxvis-scene/1",

@@ -379,6 +379,10 @@ Camera look(Vec3 eye, Vec3 dir);
 /// (id 3) in front at (10, 10, 5). A camera at (10, 10, 1) looking +z
 /// (wall_camera()) sees 1 and 3, not 2.
 std::string wall_scene_json();
+
+/// CreateScene of a description with its own deadline.
+grpc::Status create_with_deadline(const Api& api, const std::string& id, const v1::SceneDescription& d,
+                                  Seconds timeout);
 Camera wall_camera();
 
 /// `count` small spheres (ids 1..count) on a jittered lattice in

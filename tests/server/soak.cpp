@@ -1,6 +1,7 @@
 #include "soak.h"
 
 #include "extreme_cameras.h"
+#include "meshes.h"
 #include "scenes.h"
 
 #include <algorithm>
@@ -476,28 +477,10 @@ void huge_creates(const Soak& s) {
   });
 }
 
-// One static mesh of `copies` copies of a triangle with legs of `leg` units
-// in a 64^3 grid: the mesh builds whose cost the estimate once missed.
+/// test::copied_triangle_scene on the wire.
 v1::SceneDescription copied_triangles(int copies, double leg) {
-  SceneDesc d;
-  d.bounds_min = Vec3(0.0);
-  d.bounds_max = Vec3(100.0);
-  d.grid = glm::ivec3(64);
-  auto m = std::make_shared<Mesh>();
-  for (int i = 0; i < copies; ++i) {
-    const auto k = static_cast<std::uint32_t>(m->vertices.size());
-    m->vertices.push_back(Vec3(5.0));
-    m->vertices.push_back(Vec3(5.0 + leg, 5.0, 5.0 + 0.3 * leg));
-    m->vertices.push_back(Vec3(5.0, 5.0 + leg, 5.0 + 0.6 * leg));
-    m->triangles.push_back({k, k + 1, k + 2});
-  }
-  ObjectDesc o;
-  o.id = 1;
-  o.shape = Shape::Mesh;
-  o.mesh = m;
-  d.objects.push_back(o);
   v1::SceneDescription wire;
-  to_proto(d, &wire);
+  to_proto(test::copied_triangle_scene(copies, leg), &wire);
   return wire;
 }
 

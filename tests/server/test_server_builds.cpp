@@ -34,17 +34,6 @@ v1::SceneDescription huge_spheres(int count) {
   return out;
 }
 
-grpc::Status create_with_deadline(const Api& api, const std::string& id, const v1::SceneDescription& d,
-                                  Seconds timeout) {
-  grpc::ClientContext ctx;
-  api.prepare(&ctx, timeout);
-  v1::CreateSceneRequest req;
-  req.set_scene_id(id);
-  *req.mutable_description() = d;
-  v1::SceneInfo info;
-  return api.stub().CreateScene(&ctx, req, &info);
-}
-
 // The figure that refuses is the objects' footprints, not the grid: the
 // grid alone fits the budget many times over.
 TEST(Builds, FootprintsCountInTheMemoryBudget) {

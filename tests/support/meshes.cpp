@@ -59,6 +59,25 @@ std::shared_ptr<const Mesh> icosphere(int levels) {
   return m;
 }
 
+SceneDesc copied_triangle_scene(int copies, double leg) {
+  SceneDesc d;
+  d.bounds_min = Vec3(0.0);
+  d.bounds_max = Vec3(100.0);
+  d.grid = glm::ivec3(64);
+  auto m = std::make_shared<Mesh>();
+  m->vertices.reserve(3 * static_cast<std::size_t>(copies));
+  m->triangles.reserve(static_cast<std::size_t>(copies));
+  for (int i = 0; i < copies; ++i) {
+    const auto k = static_cast<std::uint32_t>(m->vertices.size());
+    m->vertices.push_back(Vec3(5.0));
+    m->vertices.push_back(Vec3(5.0 + leg, 5.0, 5.0 + 0.3 * leg));
+    m->vertices.push_back(Vec3(5.0, 5.0 + leg, 5.0 + 0.6 * leg));
+    m->triangles.push_back({k, k + 1, k + 2});
+  }
+  d.objects.push_back(mesh_object(1, m, Vec3(0.0)));
+  return d;
+}
+
 std::shared_ptr<const Mesh> triangle_soup(int count, std::uint64_t seed) {
   auto m = std::make_shared<Mesh>();
   Rng rng(seed);

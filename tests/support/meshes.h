@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <memory>
 
+#include "voxvis/scene.h"
 #include "voxvis/types.h"
 
 namespace voxvis::test {
@@ -23,6 +24,12 @@ std::shared_ptr<const Mesh> icosphere(int levels);
 /// each with vertices of its own (a soup: edges not shared, triangles may
 /// cross).
 std::shared_ptr<const Mesh> triangle_soup(int count, std::uint64_t seed);
+
+/// One static mesh (id 1) of `copies` copies of a triangle with legs of
+/// `leg` world units, each with vertices of its own, in a 64^3 grid over
+/// [0, 100]^3: the hostile mesh builds (overlapping triangles, large or
+/// small) whose cost the memory budget must bound.
+SceneDesc copied_triangle_scene(int copies, double leg);
 
 /// A mesh object: `mesh` placed at `center`, rotated by `rotation` (unit),
 /// scaled by `scale`.
