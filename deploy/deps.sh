@@ -32,12 +32,14 @@ VOXVIS_PACKAGES=("${VOXVIS_BUILD_PACKAGES[@]}" "${VOXVIS_DEV_PACKAGES[@]}")
 # importer's tests (glTF 2.0 samples, OBJ, the FZK house as IFC) in
 # /usr/share/assimp/models; podman, runc and debootstrap for the container
 # image's test (tests/deploy/container_test.sh; runc because podman's default
-# runtime, crun, fails on hosts with hybrid cgroups); PyYAML and Debian's
+# runtime, crun, fails on hosts with hybrid cgroups; catatonit because
+# `podman kube play` builds its pod's pause image from it, and it is only a
+# recommendation of podman's, which --no-install-recommends leaves out); PyYAML and Debian's
 # Kubernetes client, whose models are the API's schema, for the manifests'
 # check (tests/deploy/test_manifests.py).
 VOXVIS_TEST_PACKAGES=(
   assimp-testmodels
-  podman runc debootstrap
+  podman runc catatonit debootstrap
   python3-yaml python3-kubernetes
 )
 

@@ -30,6 +30,9 @@ fail() { say "FAILED: $*"; exit 1; }
 [ -x "$cli" ] || fail "$cli missing: build first (tests/run.sh does)"
 command -v podman >/dev/null 2>&1 || skip "podman is not installed (deploy/deps.sh's test packages install it as root)"
 command -v runc >/dev/null 2>&1 || skip "runc is not installed"
+# `podman kube play` builds its pods' pause image from catatonit, which podman
+# only recommends: without it every kube play fails after the long build.
+command -v catatonit >/dev/null 2>&1 || skip "catatonit is not installed (podman kube play needs it; deploy/deps.sh's test packages install it)"
 work=$(mktemp -d /tmp/voxvis-container-test.XXXXXX)
 # podman's settings for every command, kube play included (it takes no
 # --ulimit): runc, and limits within the host's hard ones (podman's defaults
