@@ -1,6 +1,8 @@
 // egl_context.cpp — see egl_context.h.
 #include "egl_context.h"
 
+#include "egl_select.h"
+
 #include <cstdio>
 #include <cstring>
 #include <mutex>
@@ -43,18 +45,6 @@ std::string egl_failure(const std::string& what) {
   return what + " failed (" + egl_error_name(e) + ", " + code + ")";
 }
 
-/// Whether the space-separated extension list holds `name` exactly.
-bool has_extension(const char* list, const char* name) {
-  if (list == nullptr) return false;
-  const std::size_t n = std::strlen(name);
-  for (const char* p = list; (p = std::strstr(p, name)) != nullptr; p += n) {
-    const bool starts = p == list || p[-1] == ' ';
-    const bool ends = p[n] == '\0' || p[n] == ' ';
-    if (starts && ends) return true;
-  }
-  return false;
-}
-
 /// EGL displays are per process and shared by every context on them. Each
 /// is initialised once and kept for the life of the process: eglTerminate
 /// would end it for every other renderer, and it unloads Mesa's driver, which
@@ -79,16 +69,12 @@ struct DeviceChoice {
   int index = -1;
   int count = 0;
   bool software = false;
+  std::string why;  // Why this platform and device.
 };
 
 bool open_device(int wanted, DeviceChoice* out, std::string* error) {
   const char* client = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
-  if (!has_extension(client, "EGL_EXT_platform_device") ||
-      !has_extension(client, "EGL_EXT_device_enumeration")) {
-    *error = "the EGL device platform is not available (no EGL_EXT_platform_device and "
-             "EGL_EXT_device_enumeration among the client extensions)";
-    return false;
-  }
+  if (!device_platform_offered(client, error)) return false;
   auto query_devices = reinterpret_cast<PFNEGLQUERYDEVICESEXTPROC>(eglGetProcAddress("eglQueryDevicesEXT"));
   auto query_string =
       reinterpret_cast<PFNEGLQUERYDEVICESTRINGEXTPROC>(eglGetProcAddress("eglQueryDeviceStringEXT"));
@@ -110,47 +96,28 @@ bool open_device(int wanted, DeviceChoice* out, std::string* error) {
   }
   devices.resize(static_cast<std::size_t>(count));
   out->count = count;
-  if (count == 0) {
-    *error = "no EGL device found";
-    return false;
+  std::vector<std::string> extensions;
+  for (const EGLDeviceEXT d : devices) {
+    const char* e = query_string(d, EGL_EXTENSIONS);
+    extensions.emplace_back(e != nullptr ? e : "");
   }
-  auto is_software = [&](EGLDeviceEXT d) {
-    return has_extension(query_string(d, EGL_EXTENSIONS), "EGL_MESA_device_software");
-  };
-  int pick = wanted;
-  if (wanted >= count) {
-    *error = "--egl-device " + std::to_string(wanted) + " does not exist: " + std::to_string(count) +
-             " EGL device(s) found (0 to " + std::to_string(count - 1) + ")";
-    return false;
-  }
-  if (pick < 0) {
-    // A hardware device when there is one (NVIDIA's driver, Mesa on a GPU),
-    // else the software device.
-    pick = 0;
-    for (int i = 0; i < count; ++i)
-      if (!is_software(devices[static_cast<std::size_t>(i)])) {
-        pick = i;
-        break;
-      }
-  }
-  const EGLDeviceEXT dev = devices[static_cast<std::size_t>(pick)];
+  DevicePick pick;
+  if (!choose_device(extensions, wanted, &pick, error)) return false;
+  const EGLDeviceEXT dev = devices[static_cast<std::size_t>(pick.index)];
   out->display = platform_display(EGL_PLATFORM_DEVICE_EXT, dev, nullptr);
   if (out->display == EGL_NO_DISPLAY) {
-    *error = egl_failure("eglGetPlatformDisplayEXT(EGL_PLATFORM_DEVICE_EXT, device " + std::to_string(pick) + ")");
+    *error = egl_failure("eglGetPlatformDisplayEXT(EGL_PLATFORM_DEVICE_EXT, device " + std::to_string(pick.index) + ")");
     return false;
   }
-  out->index = pick;
-  out->software = is_software(dev);
+  out->index = pick.index;
+  out->software = pick.software;
+  out->why = pick.why;
   return true;
 }
 
 bool open_surfaceless(DeviceChoice* out, std::string* error) {
   const char* client = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
-  if (!has_extension(client, "EGL_MESA_platform_surfaceless")) {
-    *error = "the surfaceless platform is not available (no EGL_MESA_platform_surfaceless among the "
-             "client extensions)";
-    return false;
-  }
+  if (!surfaceless_offered(client, error)) return false;
   auto platform_display =
       reinterpret_cast<PFNEGLGETPLATFORMDISPLAYEXTPROC>(eglGetProcAddress("eglGetPlatformDisplayEXT"));
   if (platform_display == nullptr) {
@@ -191,7 +158,10 @@ std::unique_ptr<EglContext> EglContext::create(const ContextOptions& options, Co
       return nullptr;
     }
     opened = open_surfaceless(&choice, &surfaceless_error);
-    if (opened) info->platform = Platform::Surfaceless;
+    if (opened) {
+      info->platform = Platform::Surfaceless;
+      choice.why = options.platform == Platform::Surfaceless ? "asked for" : "no device platform: " + device_error;
+    }
   }
   if (!opened) {
     if (options.platform == Platform::Device)
@@ -205,6 +175,7 @@ std::unique_ptr<EglContext> EglContext::create(const ContextOptions& options, Co
   info->device = info->platform == Platform::Device ? choice.index : -1;
   info->devices = choice.count;
   info->software = choice.software;
+  info->why = choice.why;
 
   if (!initialise_display(choice.display, error)) return nullptr;
   std::unique_ptr<EglContext> ctx(new EglContext);

@@ -116,6 +116,26 @@ const char* platform_name(Platform p) {
   return "?";
 }
 
+bool parse_id_readback(const std::string& text, IdReadback* out, std::string* message) {
+  if (text == "auto") *out = IdReadback::Auto;
+  else if (text == "set") *out = IdReadback::Set;
+  else if (text == "image") *out = IdReadback::Image;
+  else {
+    *message = "unknown id read-back '" + text + "' (known: auto, set, image)";
+    return false;
+  }
+  return true;
+}
+
+const char* id_readback_name(IdReadback r) {
+  switch (r) {
+    case IdReadback::Auto: return "auto";
+    case IdReadback::Set: return "set";
+    case IdReadback::Image: return "image";
+  }
+  return "?";
+}
+
 bool parse_method(const std::string& text, Method* out, std::string* message) {
   if (text == "ids") *out = Method::Ids;
   else if (text == "queries") *out = Method::Queries;
@@ -160,10 +180,12 @@ std::string ContextInfo::summary() const {
   s += gl_renderer;
   s += ", OpenGL ";
   s += gl_version;
+  if (!why.empty()) s += " (" + why + ")";
+  s += id_set_on_gpu ? "; ids read back as a set" : "; ids read back as an image";
   return s;
 }
 
-bool Renderer::Impl::setup(std::string* error) {
+bool Renderer::Impl::setup(IdReadback readback, std::string* error) {
   GLint max_rb = 0, dims[2] = {0, 0};
   glGetIntegerv(GL_MAX_RENDERBUFFER_SIZE, &max_rb);
   glGetIntegerv(GL_MAX_VIEWPORT_DIMS, dims);
@@ -202,7 +224,6 @@ bool Renderer::Impl::setup(std::string* error) {
   glVertexAttribDivisor(3, 1);
 
   glGenFramebuffers(1, &fbo);
-  glGenRenderbuffers(1, &id_rb);
   glGenRenderbuffers(1, &depth_rb);
 
   // Back faces only: each ray through an object's proxy leaves it once, so
@@ -215,18 +236,23 @@ bool Renderer::Impl::setup(std::string* error) {
   glEnable(GL_DEPTH_CLAMP);
   glEnable(GL_DEPTH_TEST);
   if (!setup_meshes(error)) return false;
+  if (!setup_id_set(readback, error)) return false;
+  glUseProgram(program);
   glBindVertexArray(vao);
   return gl_ok("set-up", error);
 }
 
 bool Renderer::Impl::resize(int w, int h, std::string* error) {
   if (w == width && h == height) return true;
-  glBindRenderbuffer(GL_RENDERBUFFER, id_rb);
-  glRenderbufferStorage(GL_RENDERBUFFER, GL_R32UI, w, h);
+  // An immutable texture: made again at each new size.
+  if (id_tex != 0) glDeleteTextures(1, &id_tex);
+  glGenTextures(1, &id_tex);
+  glBindTexture(GL_TEXTURE_2D, id_tex);
+  glTexStorage2D(GL_TEXTURE_2D, 1, GL_R32UI, w, h);
   glBindRenderbuffer(GL_RENDERBUFFER, depth_rb);
   glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, w, h);
   glBindFramebuffer(GL_FRAMEBUFFER, fbo);
-  glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, id_rb);
+  glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, id_tex, 0);
   glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth_rb);
   const GLenum status = glCheckFramebufferStatus(GL_FRAMEBUFFER);
   if (status != GL_FRAMEBUFFER_COMPLETE) {
@@ -250,12 +276,22 @@ std::unique_ptr<Renderer> Renderer::create(const ContextOptions& options, std::s
   auto impl = std::make_unique<Impl>();
   impl->egl = detail::EglContext::create(options, &impl->info, error);
   if (!impl->egl) return nullptr;
-  if (!impl->setup(error)) return nullptr;
+  if (!impl->setup(options.id_readback, error)) return nullptr;
   return std::unique_ptr<Renderer>(new Renderer(std::move(impl)));
 }
 
 const ContextInfo& Renderer::info() const { return impl_->info; }
-const std::vector<ObjectId>& Renderer::last_ids() const { return impl_->ids; }
+const std::vector<ObjectId>& Renderer::last_ids() const {
+  Impl& m = *impl_;
+  if (m.ids_pending) {
+    std::string error;
+    if (!m.egl->make_current(&error) || !m.read_id_image(&error)) {
+      m.ids.clear();
+      m.ids_pending = false;
+    }
+  }
+  return m.ids;
+}
 
 bool Renderer::Impl::begin(const Camera& cam, int w, int h, Basis* b, std::string* error) {
   if (w < 1 || h < 1 || w > info.max_size || h > info.max_size || std::int64_t{w} * h > kMaxPixels) {
@@ -332,6 +368,10 @@ void Renderer::Impl::upload() {
 }
 
 void Renderer::Impl::depth_pass(const Basis& b, int w, int h, std::ptrdiff_t count) {
+  // The last id image is overwritten: last_ids() holds none until the next
+  // Method::Ids call.
+  ids_pending = false;
+  ids.clear();
   glBindFramebuffer(GL_FRAMEBUFFER, fbo);
   glViewport(0, 0, w, h);
   glUseProgram(program);
@@ -413,24 +453,20 @@ bool Renderer::visible(const std::vector<ObjectDesc>& objects, const Camera& cam
 
   if (options.method == Method::Ids) {
     t0 = Clock::now();
-    m.raw.resize(static_cast<std::size_t>(w) * static_cast<std::size_t>(h));
-    glPixelStorei(GL_PACK_ALIGNMENT, 4);
-    glReadBuffer(GL_COLOR_ATTACHMENT0);
-    glReadPixels(0, 0, w, h, GL_RED_INTEGER, GL_UNSIGNED_INT, m.raw.data());
-    if (!m.gl_ok("reading the id buffer", error)) return false;
-    m.ids.resize(m.raw.size());
-    std::vector<char> seen(m.drawn_ids.size() + 1, 0);
-    for (std::size_t i = 0; i < m.raw.size(); ++i) {
-      const std::uint32_t k = m.raw[i];
-      if (k > m.drawn_ids.size()) {
-        *error = "the id buffer holds an instance number that was never drawn";
-        return false;
-      }
-      m.ids[i] = k == 0 ? 0 : m.drawn_ids[k - 1];
-      seen[k] = 1;
+    m.ids_w = w;
+    m.ids_h = h;
+    m.ids_pending = true;
+    std::vector<std::uint32_t>& seen = m.seen_flags;
+    if (m.seen_program != 0) {
+      // The set gathered on the GPU; the image read only if asked for.
+      if (!m.gather_seen(m.drawn_ids.size(), w, h, &seen, error)) return false;
+    } else {
+      if (!m.read_id_image(error)) return false;
+      seen.assign(m.drawn_ids.size() + 1, 0);
+      for (const std::uint32_t k : m.raw) seen[k] = 1;
     }
     for (std::size_t k = 1; k < seen.size(); ++k)
-      if (seen[k] && wanted(m.drawn_ids[k - 1])) out->push_back(m.drawn_ids[k - 1]);
+      if (seen[k] != 0 && wanted(m.drawn_ids[k - 1])) out->push_back(m.drawn_ids[k - 1]);
     stats->read_ms = ms_since(t0);
   } else {
     // One query per candidate in the frustum, drawn against the finished

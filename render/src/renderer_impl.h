@@ -171,7 +171,7 @@ struct Renderer::Impl {
   std::unique_ptr<detail::EglContext> egl;
   ContextInfo info;
   GLuint program = 0, vao = 0, corner_vbo = 0, index_ebo = 0, instance_vbo = 0;
-  GLuint fbo = 0, id_rb = 0, depth_rb = 0;
+  GLuint fbo = 0, id_tex = 0, depth_rb = 0;  // The id image is a texture: the id set's pass reads it.
   GLint u_right = -1, u_up = -1, u_f = -1, u_tan = -1, u_size = -1, u_range = -1;
   int width = 0, height = 0;
   std::size_t instance_capacity = 0;
@@ -192,8 +192,18 @@ struct Renderer::Impl {
   std::vector<const detail::GpuMesh*> slot_mesh;     // Per mesh instance: its mesh.
   std::vector<std::uint32_t> mesh_slot;              // Per instance of a mesh: its mesh instance.
   std::vector<detail::MeshGroup> mesh_groups;
-  std::vector<ObjectId> ids;        // Last id image.
-  std::vector<std::uint32_t> raw;
+  std::vector<ObjectId> ids;        // Last id image, once read (read_id_image).
+  std::vector<std::uint32_t> raw;         // The image as read: instance numbers.
+  std::vector<std::uint32_t> seen_flags;  // Per instance number: seen at a pixel centre.
+  // The id set gathered on the GPU (id_set.cpp); no program: OpenGL 4.2,
+  // the image is read instead.
+  GLuint seen_program = 0, seen_buffer = 0;
+  GLint su_size = -1;
+  std::size_t seen_capacity = 0;
+  /// The last Method::Ids call's image, not read yet: last_ids() reads it
+  /// (of ids_w x ids_h), until the renderer draws again.
+  bool ids_pending = false;
+  int ids_w = 0, ids_h = 0;
   detail::RefineState refine;      // The refinement levels' state between frames.
 
   ~Impl() {
@@ -202,8 +212,10 @@ struct Renderer::Impl {
     if (egl->make_current(&ignored)) {
       if (!queries.empty()) glDeleteQueries(static_cast<GLsizei>(queries.size()), queries.data());
       glDeleteFramebuffers(1, &fbo);
-      glDeleteRenderbuffers(1, &id_rb);
+      glDeleteTextures(1, &id_tex);
       glDeleteRenderbuffers(1, &depth_rb);
+      glDeleteBuffers(1, &seen_buffer);
+      glDeleteProgram(seen_program);
       glDeleteBuffers(1, &corner_vbo);
       glDeleteBuffers(1, &index_ebo);
       glDeleteBuffers(1, &instance_vbo);
@@ -213,7 +225,13 @@ struct Renderer::Impl {
     }
   }
 
-  bool setup(std::string* error);
+  bool setup(IdReadback readback, std::string* error);
+  // The id set (id_set.cpp).
+  bool setup_id_set(IdReadback readback, std::string* error);
+  /// seen[k] != 0 for every instance number k (1..n) the w x h id image holds.
+  bool gather_seen(std::size_t n, int w, int h, std::vector<std::uint32_t>* seen, std::string* error);
+  /// Reads the pending id image into `ids`.
+  bool read_id_image(std::string* error);
   bool resize(int w, int h, std::string* error);
   /// Forgets this frame's instances (objects, meshes, query boxes).
   void clear_instances();

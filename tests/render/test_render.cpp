@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "raycast.h"
+#include "render_check.h"
 #include "scenes.h"
 #include "voxvis/render.h"
 
@@ -23,15 +24,6 @@ using render::Method;
 using render::Renderer;
 using render::VisibleOptions;
 using render::VisibleStats;
-
-std::unique_ptr<Renderer> make_renderer(render::Platform platform = render::Platform::Auto) {
-  render::ContextOptions o;
-  o.platform = platform;
-  std::string error;
-  auto r = Renderer::create(o, &error);
-  EXPECT_TRUE(r) << error;
-  return r;
-}
 
 /// The ray caster's first hits at every pixel centre of a w x h image, row 0
 /// at the bottom, as the renderer samples them.
@@ -78,17 +70,18 @@ Agreement compare(const std::vector<ObjectId>& gpu, const std::vector<std::vecto
 }
 
 TEST(Render, HeadlessContextOffersOpenGL4Core) {
-  auto r = make_renderer();
-  ASSERT_TRUE(r);
+  VOXVIS_RENDERER_OR_SKIP(r, render::Platform::Auto);
   const render::ContextInfo& info = r->info();
   EXPECT_NE(info.platform, render::Platform::Auto);
   EXPECT_EQ(info.gl_version.rfind("4.", 0), 0u) << info.summary();
   EXPECT_GE(info.max_size, 2048) << info.summary();
+  // It says which platform and device it took, and why.
+  EXPECT_FALSE(info.why.empty()) << info.summary();
+  EXPECT_NE(info.summary().find(" (" + info.why + ")"), std::string::npos) << info.summary();
 }
 
 TEST(Render, DeviceAndSurfacelessPlatformsRenderTheSameSet) {
-  auto device = make_renderer(render::Platform::Device);
-  ASSERT_TRUE(device);
+  VOXVIS_RENDERER_OR_SKIP(device, render::Platform::Device);
   render::ContextOptions o;
   o.platform = render::Platform::Surfaceless;
   std::string error;
@@ -113,8 +106,7 @@ TEST(Render, AgreesWithTheRayCasterAtPixelCentres) {
   // caster's, except where single-precision depths order near-ties or a
   // pixel centre grazes a silhouette. Those pixels are few, and an object
   // only one side sees covers at most a pixel or two.
-  auto r = make_renderer();
-  ASSERT_TRUE(r);
+  VOXVIS_RENDERER_OR_SKIP(r, render::Platform::Auto);
   constexpr int kW = 80, kH = 45;
   int pixels = 0, differ = 0, frames = 0;
   for (std::uint64_t seed = 1; seed <= 6; ++seed) {
@@ -152,8 +144,7 @@ TEST(Render, HugeAndTinyCoordinatesRenderTheSameImage) {
   // float, so a scene moved far from the origin, or shrunk or grown by many
   // orders of magnitude, renders as it does at home: the same id at (nearly)
   // every pixel.
-  auto r = make_renderer();
-  ASSERT_TRUE(r);
+  VOXVIS_RENDERER_OR_SKIP(r, render::Platform::Auto);
   constexpr int kW = 64, kH = 36;
   const SceneDesc scene = random_scene(random_scene_params(31), 31);
   const std::vector<Camera> path = random_camera_path(scene, 32);
@@ -180,8 +171,7 @@ TEST(Render, HugeAndTinyCoordinatesRenderTheSameImage) {
 TEST(Render, EyeInsideAnObjectSeesOnlyThatObject) {
   // The caster's convention: an object containing the eye is hit at depth
   // `near` on every ray, so it hides everything, also what lies inside it.
-  auto r = make_renderer();
-  ASSERT_TRUE(r);
+  VOXVIS_RENDERER_OR_SKIP(r, render::Platform::Auto);
   for (const ObjectDesc& outer : {box_between(1, Vec3(-5.0), Vec3(5.0)), sphere(1, Vec3(0.5, 0.0, 0.0), 4.0)}) {
     const std::vector<ObjectDesc> objects = {outer, sphere(2, Vec3(0.0, 0.0, -2.0), 0.5),
                                              box_between(3, Vec3(-1, -1, -20), Vec3(1, 1, -19))};
@@ -200,8 +190,7 @@ TEST(Render, OnlyThePartOfAnOccluderBeyondTheNearPlaneHides) {
   // Left: a wall wholly nearer than `near` is clipped away and hides
   // nothing. Right: a wall crossing the near plane keeps its part beyond it,
   // which (a solid) is hit at depth `near` and hides what lies behind.
-  auto r = make_renderer();
-  ASSERT_TRUE(r);
+  VOXVIS_RENDERER_OR_SKIP(r, render::Platform::Auto);
   const Camera cam = camera_along(Vec3(0.0), Vec3(0, 0, -1), 90.0, 1.0, 1.0, 100.0);
   const std::vector<ObjectDesc> objects = {box_between(1, Vec3(-10, -10, -0.8), Vec3(0, 10, -0.2)),
                                            box_between(2, Vec3(0, -10, -1.5), Vec3(10, 10, -0.5)),
@@ -218,8 +207,7 @@ TEST(Render, QueriesSeeWhatTheIdBufferSeesAndTies) {
   // Both methods sample the same pixel centres; queries count every object
   // of a depth tie, the id buffer one of them, so ids <= queries, and the
   // queries' extra objects are ties: the caster hits them first too.
-  auto r = make_renderer();
-  ASSERT_TRUE(r);
+  VOXVIS_RENDERER_OR_SKIP(r, render::Platform::Auto);
   // Abutting unit blocks and a sphere touching a box: ties at shared faces.
   std::vector<ObjectDesc> objects;
   ObjectId id = 1;
@@ -255,8 +243,7 @@ TEST(Render, QueriesSeeWhatTheIdBufferSeesAndTies) {
 }
 
 TEST(Render, CandidatesLimitWhatIsReported) {
-  auto r = make_renderer();
-  ASSERT_TRUE(r);
+  VOXVIS_RENDERER_OR_SKIP(r, render::Platform::Auto);
   const SceneDesc scene = random_scene(random_scene_params(8), 8);
   const Camera cam = random_camera_path(scene, 9)[0];
   std::string error;
@@ -279,9 +266,64 @@ TEST(Render, CandidatesLimitWhatIsReported) {
   }
 }
 
+TEST(Render, TheSetGatheredOnTheGpuIsTheImages) {
+  // The two read-backs of Method::Ids (render.h, IdReadback): the flags a
+  // compute pass marks and the whole image give the same set, candidates
+  // applied the same way; the image behind the flags is read on demand and
+  // is gone once the renderer draws again.
+  std::unique_ptr<Renderer> by_set, by_image;
+  for (auto [readback, out] : {std::pair{render::IdReadback::Set, &by_set},
+                               std::pair{render::IdReadback::Image, &by_image}}) {
+    render::ContextOptions o;
+    o.id_readback = readback;
+    std::string why;
+    *out = Renderer::create(o, &why);
+    if (!*out) GTEST_SKIP() << "no renderer on this machine: " << why;
+  }
+  EXPECT_FALSE(by_image->info().id_set_on_gpu);
+  if (!by_set->info().id_set_on_gpu) GTEST_SKIP() << "no compute shaders: " << by_set->info().summary();
+  int frames = 0;
+  for (std::uint64_t seed = 31; seed <= 34; ++seed) {
+    const SceneDesc scene = random_scene(random_scene_params(seed), seed);
+    const std::vector<Camera> path = random_camera_path(scene, seed + 7);
+    for (std::size_t f = 0; f < path.size(); f += 10, ++frames) {
+      const std::string where = "seed " + std::to_string(seed) + " frame " + std::to_string(f);
+      std::vector<ObjectId> a, b, some_a, some_b;
+      VisibleStats st;
+      std::string error;
+      ASSERT_TRUE(by_set->visible(scene.objects, path[f], VisibleOptions{72, 40}, nullptr, &a, &st, &error)) << error;
+      ASSERT_TRUE(by_image->visible(scene.objects, path[f], VisibleOptions{72, 40}, nullptr, &b, &st, &error))
+          << error;
+      EXPECT_EQ(a, b) << where;
+      EXPECT_EQ(by_set->last_ids(), by_image->last_ids()) << where;
+      std::vector<ObjectId> candidates;
+      for (const ObjectDesc& o : scene.objects)
+        if (o.id % 3 != 0) candidates.push_back(o.id);
+      ASSERT_TRUE(by_set->visible(scene.objects, path[f], VisibleOptions{72, 40}, &candidates, &some_a, &st, &error))
+          << error;
+      ASSERT_TRUE(
+          by_image->visible(scene.objects, path[f], VisibleOptions{72, 40}, &candidates, &some_b, &st, &error))
+          << error;
+      EXPECT_EQ(some_a, some_b) << where;
+    }
+  }
+  EXPECT_GT(frames, 4);
+  // A query pass draws again: the last id image is gone.
+  const SceneDesc scene = random_scene(random_scene_params(31), 31);
+  std::vector<ObjectId> vis;
+  VisibleStats st;
+  std::string error;
+  const Camera cam = random_camera_path(scene, 38)[0];
+  ASSERT_TRUE(by_set->visible(scene.objects, cam, VisibleOptions{72, 40}, nullptr, &vis, &st, &error)) << error;
+  EXPECT_EQ(by_set->last_ids().size(), 72u * 40u);
+  ASSERT_TRUE(by_set->visible(scene.objects, cam, VisibleOptions{72, 40, Method::Queries}, nullptr, &vis, &st,
+                              &error))
+      << error;
+  EXPECT_TRUE(by_set->last_ids().empty());
+}
+
 TEST(Render, BadResolutionsAndCamerasAreErrors) {
-  auto r = make_renderer();
-  ASSERT_TRUE(r);
+  VOXVIS_RENDERER_OR_SKIP(r, render::Platform::Auto);
   const std::vector<ObjectDesc> objects = {sphere(1, Vec3(0, 0, -5), 1.0)};
   const Camera good = camera_along(Vec3(0.0), Vec3(0, 0, -1));
   std::vector<ObjectId> vis;
@@ -311,8 +353,7 @@ TEST(Render, ContextsOnSeveralThreadsAndTeardownInAnyOrder) {
   // others working (they share the process's EGL display).
   const SceneDesc scene = random_scene(random_scene_params(21), 21);
   const std::vector<Camera> path = random_camera_path(scene, 22);
-  auto reference = make_renderer();
-  ASSERT_TRUE(reference);
+  VOXVIS_RENDERER_OR_SKIP(reference, render::Platform::Auto);
   std::vector<std::vector<ObjectId>> expect(4);
   std::string error;
   VisibleStats st;

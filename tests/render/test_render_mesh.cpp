@@ -21,6 +21,7 @@
 #include "scenes.h"
 #include "voxvis/mesh.h"
 #include "voxvis/refine.h"
+#include "render_check.h"
 #include "voxvis/render.h"
 
 namespace voxvis::test {
@@ -31,13 +32,6 @@ using render::Renderer;
 using render::VisibleOptions;
 using render::VisibleStats;
 using Ids = std::vector<ObjectId>;
-
-std::unique_ptr<Renderer> make_renderer() {
-  std::string error;
-  auto r = Renderer::create(render::ContextOptions{}, &error);
-  EXPECT_TRUE(r) << error;
-  return r;
-}
 
 /// The visible set by `method` at w x h; the id image in `image` (Ids only).
 Ids render_set(Renderer& r, const std::vector<ObjectDesc>& objects, const Camera& cam, int w, int h, Method method,
@@ -74,8 +68,7 @@ int disagreements(const std::vector<ObjectId>& gpu, const std::vector<ObjectDesc
 }
 
 TEST(RenderMesh, MeshCubeOccludesLikeABox) {
-  auto r = make_renderer();
-  ASSERT_TRUE(r);
+  VOXVIS_RENDERER_OR_SKIP(r, render::Platform::Auto);
   const Vec3 c(0.3, -0.2, -6.0), half(1.1, 0.9, 0.7);
   const std::vector<ObjectDesc> rest = {sphere(2, Vec3(0.3, -0.2, -12.0), 1.5),  // Behind: hidden.
                                         sphere(3, Vec3(1.6, 0.4, -10.0), 1.0)};  // Behind, off to a side: shows.
@@ -104,8 +97,7 @@ TEST(RenderMesh, AMeshSeenThroughASlitIsFound) {
   // A wall at z = -10 with a vertical slit about 1.7 pixels wide; behind it
   // a mesh ball, seen only through the slit, and a ball hidden by the wall.
   // The wall as two boxes, then as one flat mesh of two rectangles.
-  auto r = make_renderer();
-  ASSERT_TRUE(r);
+  VOXVIS_RENDERER_OR_SKIP(r, render::Platform::Auto);
   constexpr int kW = 64, kH = 48;
   const Camera cam = camera_along(Vec3(0.0), Vec3(0, 0, -1), 60.0, static_cast<double>(kW) / kH, 0.1, 100.0);
   auto flat = std::make_shared<Mesh>();
@@ -139,8 +131,7 @@ TEST(RenderMesh, RotatedAndMovedMeshesRenderAsTheCasterSees) {
   // uncovers it. Then the same, rotated about a slanted axis, scaled, and
   // the whole scene moved 3e7 away: the id image stays (coordinates go
   // relative to the eye in double before they are rounded to float).
-  auto r = make_renderer();
-  ASSERT_TRUE(r);
+  VOXVIS_RENDERER_OR_SKIP(r, render::Platform::Auto);
   constexpr int kW = 48, kH = 48;
   const Camera cam = camera_along(Vec3(0.0), Vec3(0, 0, -1), 60.0, 1.0, 0.1, 100.0);
   std::vector<ObjectDesc> objects = {mesh_object(1, cube_mesh(Vec3(3.0, 3.0, 0.05)), Vec3(0.0, 0.0, -5.0)),
@@ -176,8 +167,7 @@ TEST(RenderMesh, AgreesWithTheRayCasterOnMeshScenes) {
   // mesh) under random cameras: the GPU's first hit at every pixel centre
   // is one of the caster's, but for a few pixels where single precision
   // grazes an edge or orders a near tie.
-  auto r = make_renderer();
-  ASSERT_TRUE(r);
+  VOXVIS_RENDERER_OR_SKIP(r, render::Platform::Auto);
   constexpr int kW = 80, kH = 45;
   const std::shared_ptr<const Mesh> shapes[] = {icosphere(2), cube_mesh(Vec3(1.0, 0.5, 0.25)), triangle_soup(40, 3)};
   int pixels = 0, differ = 0, mesh_pixels = 0;
@@ -217,8 +207,7 @@ TEST(RenderMesh, RefinementKeepsTheMeshesThatShow) {
   // A mesh wall in front of a crowd of small meshes and balls, the PVS all
   // of them: every level keeps what shows; a query per object drops the
   // hidden ones.
-  auto r = make_renderer();
-  ASSERT_TRUE(r);
+  VOXVIS_RENDERER_OR_SKIP(r, render::Platform::Auto);
   constexpr int kW = 64, kH = 48;
   const Camera cam = camera_along(Vec3(0.0), Vec3(0, 0, -1), 60.0, static_cast<double>(kW) / kH, 0.1, 100.0);
   auto flat = std::make_shared<Mesh>();

@@ -52,10 +52,31 @@ enum class Platform {
 bool parse_platform(const std::string& text, Platform* out, std::string* message);
 const char* platform_name(Platform p);
 
+/// How Method::Ids reads a frame's visible set back from the GPU.
+enum class IdReadback {
+  /// Set on a GPU; Image on a software renderer (llvmpipe), whose image is
+  /// in the CPU's memory already: a copy of it costs about what a shader
+  /// pass over it does (0.87 against 1.0 ms at 640x360, docs/verify.md).
+  Auto,
+  /// A compute pass marks the ids the image holds in a buffer of flags, and
+  /// only the flags come back: 4 bytes an object in the frustum, where the
+  /// image is 4 bytes a pixel. Needs OpenGL 4.3 (else Image).
+  Set,
+  /// The whole id image read back (glReadPixels), the set taken from it.
+  Image,
+};
+
+bool parse_id_readback(const std::string& text, IdReadback* out, std::string* message);
+const char* id_readback_name(IdReadback r);
+
 struct ContextOptions {
   Platform platform = Platform::Auto;
-  /// EGL device index on the device platform; -1: the first device that is
-  /// not a software renderer, else the software one.
+  IdReadback id_readback = IdReadback::Auto;
+  /// EGL device index on the device platform, as eglQueryDevicesEXT lists
+  /// them (--egl-device N); -1: the first device that is not a software
+  /// renderer, else the software one. The device platform is taken when the
+  /// client extensions hold EGL_EXT_platform_device and EGL_EXT_device_base
+  /// or EGL_EXT_device_enumeration (render/src/egl_select.h).
   int device = -1;
 };
 
@@ -67,6 +88,10 @@ struct ContextInfo {
   bool software = false;                 ///< Mesa's software device (llvmpipe).
   std::string gl_renderer;               ///< GL_RENDERER, e.g. "llvmpipe (LLVM 15.0.6, 256 bits)".
   std::string gl_version;                ///< GL_VERSION.
+  bool id_set_on_gpu = false;            ///< Method::Ids reads the set, not the image (IdReadback).
+  /// Why this platform and device: "the first of 2 devices that is not a
+  /// software renderer", "--egl-device 1 of 2", "no device platform: ...".
+  std::string why;
   int max_size = 0;                      ///< Largest width or height a frame may have, pixels.
   std::string summary() const;           ///< One line for logs.
 };
@@ -155,7 +180,11 @@ class Renderer {
   void set_cost_model(const CostModel& model);
 
   /// The id at every pixel of the last Method::Ids call (row 0 at the bottom,
-  /// 0 where no object is hit), width * height values.
+  /// 0 where no object is hit), width * height values; empty once the
+  /// renderer has drawn again (visible() or refine()). The image is read
+  /// back from the GPU here, on first use: visible() itself reads back only
+  /// the set of ids (a flag an object), gathered on the GPU (OpenGL 4.3;
+  /// the whole image on 4.2).
   const std::vector<ObjectId>& last_ids() const;
 
   /// The internals (render/src/renderer_impl.h), for the passes' own files.

@@ -1,0 +1,118 @@
+// id_set.cpp — the set of objects seen at the id image's pixel centres,
+// gathered on the GPU: a compute pass marks each instance number found in
+// the image in a buffer of flags, and only the flags come back (4 bytes an
+// object in the frustum, where the image is 4 bytes a pixel: 0.9 MB at
+// 640x360, 8 MB at 1920x1080, which a GPU read back five times slower than
+// it drew it). The image itself is read only when asked for
+// (Renderer::last_ids: confirming a miss needs its pixels). A context below
+// OpenGL 4.3 (no compute shaders), or by default a software renderer (whose
+// image a copy reads about as fast as a shader pass), reads the image instead.
+#include <algorithm>
+#include <string>
+#include <vector>
+
+#include "renderer_impl.h"
+
+namespace voxvis::render {
+namespace {
+
+constexpr const char* kSeenShader = R"(#version 430 core
+layout(local_size_x = 16, local_size_y = 16) in;
+layout(r32ui, binding = 0) readonly uniform uimage2D u_ids;
+layout(std430, binding = 0) buffer Seen { uint seen[]; };
+uniform ivec2 u_size;
+void main() {
+  ivec2 p = ivec2(gl_GlobalInvocationID.xy);
+  if (p.x >= u_size.x || p.y >= u_size.y) return;
+  uint k = imageLoad(u_ids, p).r;
+  if (k != 0u && k < uint(seen.length())) seen[k] = 1u;  // read_id_image names a stray number.
+}
+)";
+
+GLuint compile_compute(const char* source, std::string* error) {
+  const GLuint shader = glCreateShader(GL_COMPUTE_SHADER);
+  glShaderSource(shader, 1, &source, nullptr);
+  glCompileShader(shader);
+  GLint ok = 0;
+  glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
+  if (!ok) {
+    char log[1024] = {0};
+    glGetShaderInfoLog(shader, sizeof log, nullptr, log);
+    *error = std::string("compute shader compile failed: ") + log;
+    glDeleteShader(shader);
+    return 0;
+  }
+  const GLuint program = glCreateProgram();
+  glAttachShader(program, shader);
+  glLinkProgram(program);
+  glDeleteShader(shader);
+  glGetProgramiv(program, GL_LINK_STATUS, &ok);
+  if (!ok) {
+    *error = "compute shader link failed";
+    glDeleteProgram(program);
+    return 0;
+  }
+  return program;
+}
+
+}  // namespace
+
+bool Renderer::Impl::setup_id_set(IdReadback readback, std::string* error) {
+  GLint major = 0, minor = 0;
+  glGetIntegerv(GL_MAJOR_VERSION, &major);
+  glGetIntegerv(GL_MINOR_VERSION, &minor);
+  if (major < 4 || (major == 4 && minor < 3)) return true;  // No compute shaders: read the image.
+  const bool software = info.software || info.gl_renderer.find("llvmpipe") != std::string::npos ||
+                        info.gl_renderer.find("softpipe") != std::string::npos;
+  if (readback == IdReadback::Image || (readback == IdReadback::Auto && software)) return true;
+  seen_program = compile_compute(kSeenShader, error);
+  if (seen_program == 0) return false;
+  su_size = glGetUniformLocation(seen_program, "u_size");
+  glGenBuffers(1, &seen_buffer);
+  info.id_set_on_gpu = true;
+  return gl_ok("the id set's set-up", error);
+}
+
+bool Renderer::Impl::gather_seen(std::size_t n, int w, int h, std::vector<std::uint32_t>* seen, std::string* error) {
+  const std::size_t count = n + 1;  // Instance numbers 1..n; 0 is no object.
+  const auto bytes = static_cast<GLsizeiptr>(count * sizeof(std::uint32_t));
+  glBindBuffer(GL_SHADER_STORAGE_BUFFER, seen_buffer);
+  if (seen_capacity < count) {
+    glBufferData(GL_SHADER_STORAGE_BUFFER, bytes, nullptr, GL_DYNAMIC_READ);
+    seen_capacity = count;
+  }
+  const GLuint zero = 0;
+  glClearBufferSubData(GL_SHADER_STORAGE_BUFFER, GL_R32UI, 0, bytes, GL_RED_INTEGER, GL_UNSIGNED_INT, &zero);
+  glUseProgram(seen_program);
+  glUniform2i(su_size, w, h);
+  glBindImageTexture(0, id_tex, 0, GL_FALSE, 0, GL_READ_ONLY, GL_R32UI);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, seen_buffer);
+  glDispatchCompute(static_cast<GLuint>((w + 15) / 16), static_cast<GLuint>((h + 15) / 16), 1);
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+  seen->resize(count);
+  glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, bytes, seen->data());
+  glUseProgram(program);
+  return gl_ok("gathering the ids seen", error);
+}
+
+bool Renderer::Impl::read_id_image(std::string* error) {
+  raw.resize(static_cast<std::size_t>(ids_w) * static_cast<std::size_t>(ids_h));
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+  glPixelStorei(GL_PACK_ALIGNMENT, 4);
+  glReadBuffer(GL_COLOR_ATTACHMENT0);
+  glReadPixels(0, 0, ids_w, ids_h, GL_RED_INTEGER, GL_UNSIGNED_INT, raw.data());
+  if (!gl_ok("reading the id buffer", error)) return false;
+  ids.resize(raw.size());
+  for (std::size_t i = 0; i < raw.size(); ++i) {
+    const std::uint32_t k = raw[i];
+    if (k > drawn_ids.size()) {
+      *error = "the id buffer holds an instance number that was never drawn";
+      return false;
+    }
+    ids[i] = k == 0 ? 0 : drawn_ids[k - 1];
+  }
+  ids_pending = false;
+  return true;
+}
+
+}  // namespace voxvis::render
