@@ -65,6 +65,7 @@ struct VerifyArgs {
   std::int64_t frame_count = -1;  ///< -1: to the end.
   std::string egl_platform = "auto";
   int egl_device = -1;
+  std::string id_readback = "auto";  ///< auto | set | image (render.h, IdReadback).
   bool quiet = false;
 };
 

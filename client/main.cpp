@@ -151,6 +151,12 @@ int run(int argc, char** argv) {
   verify_cmd->add_option("--egl-device", verify.egl_device,
                          "EGL device index (device platform); default: a GPU if any, else the software one")
       ->type_name("N");
+  verify_cmd->add_option("--id-readback", verify.id_readback,
+                         "How --method ids reads the visible set back: set (a compute pass gathers the ids "
+                         "seen, only those come back), image (the whole id image), auto (set on a GPU, image "
+                         "on a software renderer)")
+      ->type_name("HOW")
+      ->capture_default_str();
   verify_cmd->add_option("--grid", verify.engine.grid, "Grid resolution for the engine, as for replay")
       ->type_name("NX,NY,NZ");
   CLI::Option* verify_tbv_opt =

@@ -2,6 +2,7 @@
 #include "reference.h"
 
 #include <algorithm>
+#include <iterator>
 #include <thread>
 
 #include "voxvis/raycast.h"
@@ -58,6 +59,39 @@ bool raycast_visible(const std::vector<ObjectDesc>& objects, const Camera& cam, 
   stats->in_frustum = static_cast<std::uint32_t>(cs.in_frustum);
   stats->upload_ms = cs.build_ms;
   stats->draw_ms = cs.cast_ms;
+  return true;
+}
+
+bool confirm_misses(render::Renderer* renderer, const std::vector<ObjectDesc>& objects, const Camera& cam, int width,
+                    int height, bool ids_current, const std::vector<ObjectId>& visible,
+                    const std::vector<ObjectId>& pvs, std::vector<ObjectId>* missed, std::vector<ObjectId>* dismissed,
+                    std::string* error) {
+  missed->clear();
+  dismissed->clear();
+  std::vector<ObjectId> sighted;
+  std::set_difference(visible.begin(), visible.end(), pvs.begin(), pvs.end(), std::back_inserter(sighted));
+  if (renderer == nullptr || sighted.empty()) {
+    *missed = std::move(sighted);
+    return true;
+  }
+  if (!ids_current) {
+    std::vector<ObjectId> shown;
+    render::VisibleStats id_pass;
+    if (!renderer->visible(objects, cam, render::VisibleOptions{width, height, render::Method::Ids}, nullptr, &shown,
+                           &id_pass, error))
+      return false;
+  }
+  raycast::confirm_near_pixels(objects, cam, width, height, renderer->last_ids(), sighted, missed, dismissed);
+  if (!ids_current && !dismissed->empty()) {
+    // The id pass keeps one object of a depth tie: what it did not show is
+    // tried at every pixel.
+    const std::vector<ObjectId> every_pixel;
+    std::vector<ObjectId> tried, confirmed;
+    tried.swap(*dismissed);
+    raycast::confirm_near_pixels(objects, cam, width, height, every_pixel, tried, &confirmed, dismissed);
+    missed->insert(missed->end(), confirmed.begin(), confirmed.end());
+    std::sort(missed->begin(), missed->end());
+  }
   return true;
 }
 

@@ -43,4 +43,21 @@ bool raycast_visible(const std::vector<ObjectDesc>& objects, const Camera& cam, 
 /// "CPU ray caster, N threads" for the report's and verify's header lines.
 std::string raycast_summary();
 
+/// The one definition of a miss that `verify` and `report` share: of the
+/// objects the reference showed (`visible`) that `pvs` lacks, those
+/// visible by the definition. From the ray caster every one (it casts in
+/// double precision, docs/verify.md). From EGL, whose single precision may
+/// show at a pixel centre what only an edge reveals, a sighting counts when
+/// the double-precision cones around one of the pixels showing it see it
+/// first (raycast::confirm_near_pixels); the others go to `dismissed`. The
+/// pixels are those of the renderer's last id image when `ids_current` (it
+/// just drew this frame by Method::Ids), else of an id pass drawn here;
+/// what that pass does not confirm (an object left out of a depth tie) is
+/// tried at every pixel. Ascending ids; false, with `error`, when the id
+/// pass fails.
+bool confirm_misses(render::Renderer* renderer, const std::vector<ObjectDesc>& objects, const Camera& cam, int width,
+                    int height, bool ids_current, const std::vector<ObjectId>& visible,
+                    const std::vector<ObjectId>& pvs, std::vector<ObjectId>* missed, std::vector<ObjectId>* dismissed,
+                    std::string* error);
+
 }  // namespace voxvis::cli

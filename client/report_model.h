@@ -41,6 +41,10 @@ struct ReportRow {
   double engine_ms = 0.0;                ///< Median of the engine alone.
   double tightness = 0.0;                ///< Total output size over total exactly visible.
   std::uint64_t misses = 0;              ///< Object-frames exactly visible but not in the output.
+  /// Object-frames EGL showed only along an edge (its single precision) that
+  /// the output lacks: not visible by the definition, not misses (verify's
+  /// rule, reference.h: confirm_misses).
+  std::uint64_t dismissed = 0;
   double queries = 0.0;                  ///< Per frame.
   /// The refinement level's costs, means per frame (render::RefineStats).
   double draw_calls = 0.0, pixels = 0.0, draw_ms = 0.0, query_ms = 0.0, wait_ms = 0.0;

@@ -23,7 +23,6 @@
 #include "output_file.h"
 #include "reference.h"
 #include "voxvis/format.h"
-#include "voxvis/raycast.h"
 #include "voxvis/render.h"
 #include "voxvis/scene.h"
 
@@ -134,6 +133,8 @@ int run_verify(const VerifyArgs& args) {
   FormatError flag_error;
   if (!parse_reference_flags(args.reference, args.egl_platform, args.egl_device, &reference_kind, &ctx, &flag_error))
     return report(flag_error);
+  if (!render::parse_id_readback(args.id_readback, &ctx.id_readback, &message))
+    return report(FormatError{"", 0, "--id-readback", message});
   if (reference_kind == Reference::Raycast && method == render::Method::Queries)
     return report(FormatError{"", 0, "--method", "queries needs the EGL reference (not --reference raycast)"});
   if (args.first_frame < 0) return report(FormatError{"", 0, "--first-frame", "must be >= 0"});
@@ -205,8 +206,7 @@ int run_verify(const VerifyArgs& args) {
   FrameInput frame;
   FrameResult result;
   FormatError error;
-  std::vector<ObjectId> pvs, vis, missed, sighted, edge_only, shown;
-  const std::vector<ObjectId> every_pixel;
+  std::vector<ObjectId> pvs, vis, missed, edge_only;
   render::VisibleStats rs;
   std::vector<double> draw_ms, read_ms, query_ms;
   std::uint64_t total_visible = 0, total_pvs = 0, total_missed = 0, frames_missed = 0, total_edge_only = 0,
@@ -260,33 +260,11 @@ int run_verify(const VerifyArgs& args) {
                                                checks_all ? nullptr : &pvs, &vis, &rs, &message)
                            : raycast_visible(objects, frame.camera, w, h, &vis, &rs, &message);
     if (!ok) return fail(report(FormatError{args.frames, line_no, "", message}));
-    missed.clear();
-    edge_only.clear();
-    std::set_difference(vis.begin(), vis.end(), pvs.begin(), pvs.end(), std::back_inserter(missed));
-    if (by_egl && !missed.empty()) {
-      // EGL's single precision may show, at a pixel centre whose ray crosses
-      // an edge, what only that edge reveals (not visible): a miss counts
-      // when the double-precision cones around one of the pixels showing it
-      // see it first. Queries read no id image: one more id pass gives one
-      // for a first try, then what it does not confirm (an object it left
-      // out of a depth tie, or one seen only along an edge) is tried at
-      // every pixel.
-      sighted.swap(missed);
-      if (method == render::Method::Queries) {
-        render::VisibleStats id_pass;
-        if (!renderer->visible(objects, frame.camera, render::VisibleOptions{w, h, render::Method::Ids}, nullptr,
-                               &shown, &id_pass, &message))
-          return fail(report(FormatError{args.frames, line_no, "", message}));
-      }
-      raycast::confirm_near_pixels(objects, frame.camera, w, h, renderer->last_ids(), sighted, &missed, &edge_only);
-      if (method == render::Method::Queries && !edge_only.empty()) {
-        sighted.swap(edge_only);
-        std::vector<ObjectId> confirmed;
-        raycast::confirm_near_pixels(objects, frame.camera, w, h, every_pixel, sighted, &confirmed, &edge_only);
-        missed.insert(missed.end(), confirmed.begin(), confirmed.end());
-        std::sort(missed.begin(), missed.end());
-      }
-    }
+    // A miss as report counts one (reference.h): EGL's sightings confirmed
+    // in double precision, the edge-only ones dismissed.
+    if (!confirm_misses(by_egl ? renderer.get() : nullptr, objects, frame.camera, w, h,
+                        method == render::Method::Ids, vis, pvs, &missed, &edge_only, &message))
+      return fail(report(FormatError{args.frames, line_no, "", message}));
     out_line = "{\"frame\":" + std::to_string(index) + ",\"visible\":" + json_ids(vis) +
                ",\"missed\":" + json_ids(missed) + ",\"edge_only\":" + json_ids(edge_only) +
                ",\"pvs_size\":" + std::to_string(pvs.size()) +

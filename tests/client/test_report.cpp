@@ -184,6 +184,48 @@ TEST_F(Report, RowsAgreeWithReplayAndVerifyAndAFailedConfigurationLeavesTheOther
   EXPECT_EQ(off["refinement"]["draw_calls_per_frame"].get<double>(), 0.0);
 }
 
+// Before: on the voxel world, report counted EGL's edge-only sightings (its
+// single precision) as misses — 17 in the default row, which left the
+// engine's default off the Pareto front — where verify of the same PVS
+// dismissed them as not visible. Both now take a miss by one definition
+// (client/reference.h, confirm_misses).
+TEST_F(Report, ReportAndVerifyCountMissesByOneDefinition) {
+  Result r = run({"generate", "--preset", "voxel-world", "--frames", "30", "--scene-out", path("w.json"),
+                  "--frames-out", path("w.jsonl")});
+  ASSERT_EQ(r.status, 0) << r.err;
+  spit(path("c.json"), R"({"configs": [{"name": "default"}]})");
+  r = run({"report", "--scene", path("w.json"), "--frames", path("w.jsonl"), "--configs", path("c.json"), "--out",
+           path("out"), "--reference", "auto", "-q"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  const nlohmann::json rep = nlohmann::json::parse(slurp(path("out/report.json")));
+  if (rep["reference_source"] != "egl") GTEST_SKIP() << "no EGL here: the ray caster's sets need no confirmation";
+  const nlohmann::json& row = rep["rows"][0];
+  ASSERT_EQ(row["name"], "default");
+  r = run({"replay", "--scene", path("w.json"), "--frames", path("w.jsonl"), "--out", path("pvs.jsonl"), "-q"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  r = run({"verify", "--scene", path("w.json"), "--frames", path("w.jsonl"), "--pvs", path("pvs.jsonl"),
+           "--reference", "egl", "-q"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  std::uint64_t missed = 0, edge_only = 0;
+  for (const std::string& l : lines_of(r.out)) {
+    const nlohmann::json j = nlohmann::json::parse(l);
+    missed += j["missed"].size();
+    edge_only += j["edge_only"].size();
+  }
+  EXPECT_EQ(row["misses"].get<std::uint64_t>(), missed);
+  EXPECT_EQ(row["edge_only_dismissed"].get<std::uint64_t>(), edge_only);
+  EXPECT_EQ(missed, 0u);
+  EXPECT_TRUE(row["pareto"].get<bool>()) << "no miss: on the front";
+  // llvmpipe shows 3 such edge sightings on these frames (measured); a GPU
+  // may show others.
+  if (rep["reference"].get<std::string>().find("llvmpipe") != std::string::npos) {
+    EXPECT_GT(edge_only, 0u) << "the case this test is for";
+  }
+  if (edge_only > 0) {
+    EXPECT_THAT(slurp(path("out/report.md")), HasSubstr(std::to_string(edge_only) + " such object-frames were dismissed"));
+  }
+}
+
 TEST_F(Report, TheRayCastersReferenceIsTheRayCasterRunByHand) {
   write_paper("s.json", "f.jsonl", 300, 30, 6);
   spit(path("c.json"), R"({"configs": [{"name": "off", "occlusion_buffer": 0}, {"name": "default"}]})");

@@ -171,6 +171,18 @@ TEST_F(Verify, TheEnginesPvsMissesNothingOnGeneratedScenes) {
     ASSERT_EQ(out.size(), 10u);
     for (const auto& j : out) EXPECT_TRUE(j["missed"].empty()) << j.dump();
   }
+  // The two read-backs of the id image (the set gathered on the GPU, the
+  // whole image) find the same visible sets.
+  std::vector<nlohmann::json> by[2];
+  for (int k = 0; k < 2; ++k) {
+    const Result r = run({"verify", "--scene", path("paper.json"), "--frames", path("paper.jsonl"), "--resolution",
+                          "128x72", "--id-readback", k == 0 ? "set" : "image"});
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_THAT(r.err, HasSubstr(k == 0 ? "ids read back as a" : "ids read back as an image"));
+    for (const auto& j : lines(r.out)) by[k].push_back(j["visible"]);
+  }
+  EXPECT_EQ(by[0], by[1]);
+  ASSERT_EQ(by[0].size(), 10u);
 }
 
 TEST_F(Verify, FindsExactlyTheMissesOfACutPvs) {
@@ -465,6 +477,7 @@ TEST_F(Verify, BadInputIsAClearError) {
       {with({"--reference", "raycast", "--method", "queries"}),
        "--method: queries needs the EGL reference (not --reference raycast)"},
       {with({"--egl-platform", "x11"}), "--egl-platform: unknown EGL platform 'x11'"},
+      {with({"--id-readback", "gpu"}), "--id-readback: unknown id read-back 'gpu' (known: auto, set, image)"},
       {with({"--egl-device", "7", "--egl-platform", "device"}), "--egl-device 7 does not exist"},
       {with({"--first-frame", "9"}), "--first-frame: is 9, the file has 4 frames"},
       {with({"--frame-count", "10"}), "--frame-count: asked for frames 0 to 9, the file has 4"},
