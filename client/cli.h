@@ -52,6 +52,14 @@ struct ReplayArgs {
 
 int run_replay(const ReplayArgs& args);
 
+/// The headless renderer's flags, verify's and report's alike.
+struct EglArgs {
+  std::string platform = "auto";        ///< --egl-platform: auto | device | surfaceless.
+  int device = -1;                      ///< --egl-device; -1: a GPU, else the software device.
+  std::string id_readback = "auto";     ///< --id-readback: auto | set | image (render.h, IdReadback).
+  std::string query_readback = "batch";  ///< --query-readback: batch | each (ContextOptions::batch_queries).
+};
+
 struct VerifyArgs {
   EngineArgs engine;
   std::string frames;      ///< Frames file, JSON Lines.
@@ -63,9 +71,7 @@ struct VerifyArgs {
   bool full = false;       ///< Queries: probe every object in the frustum, not only the PVS.
   std::int64_t first_frame = 0;
   std::int64_t frame_count = -1;  ///< -1: to the end.
-  std::string egl_platform = "auto";
-  int egl_device = -1;
-  std::string id_readback = "auto";  ///< auto | set | image (render.h, IdReadback).
+  EglArgs egl;
   bool quiet = false;
 };
 
@@ -78,8 +84,7 @@ struct ReportArgs {
   std::string reference = "auto";      ///< auto | egl | raycast: who finds the exact set.
   std::string cost_model;              ///< near-optimal's cost model file; empty: the cache directory's.
   std::int64_t frame_count = -1;       ///< The first N frames; -1: all.
-  std::string egl_platform = "auto";
-  int egl_device = -1;
+  EglArgs egl;
   bool quiet = false;
 };
 

@@ -44,6 +44,28 @@ void add_net_options(CLI::App* cmd, voxvis::cli::NetArgs* net, bool fleet = true
       ->type_name("NAME");
 }
 
+/// The headless renderer's options (verify, report).
+void add_egl_options(CLI::App* cmd, voxvis::cli::EglArgs* egl) {
+  cmd->add_option("--egl-platform", egl->platform, "EGL platform: auto, device or surfaceless")
+      ->type_name("NAME")
+      ->capture_default_str();
+  cmd->add_option("--egl-device", egl->device,
+                  "EGL device index as eglQueryDevicesEXT lists them (device platform); default: the first "
+                  "GPU, else the software one")
+      ->type_name("N");
+  cmd->add_option("--id-readback", egl->id_readback,
+                  "How the id pass's visible set comes back: set (a compute pass gathers the ids seen, only "
+                  "those are read), image (the whole id image), auto (set on a GPU, image on a software "
+                  "renderer)")
+      ->type_name("auto|set|image")
+      ->capture_default_str();
+  cmd->add_option("--query-readback", egl->query_readback,
+                  "How occlusion queries' results come back: batch (a round at once through a query buffer, "
+                  "OpenGL 4.4), each (one read per query)")
+      ->type_name("batch|each")
+      ->capture_default_str();
+}
+
 int run(int argc, char** argv) {
   using voxvis::cli::kExitError;
   using voxvis::cli::kExitOk;
@@ -145,18 +167,7 @@ int run(int argc, char** argv) {
   verify_cmd->add_option("--frame-count", verify.frame_count, "Frames to verify; -1: to the end")
       ->type_name("N")
       ->capture_default_str();
-  verify_cmd->add_option("--egl-platform", verify.egl_platform, "EGL platform: auto, device or surfaceless")
-      ->type_name("NAME")
-      ->capture_default_str();
-  verify_cmd->add_option("--egl-device", verify.egl_device,
-                         "EGL device index (device platform); default: a GPU if any, else the software one")
-      ->type_name("N");
-  verify_cmd->add_option("--id-readback", verify.id_readback,
-                         "How --method ids reads the visible set back: set (a compute pass gathers the ids "
-                         "seen, only those come back), image (the whole id image), auto (set on a GPU, image "
-                         "on a software renderer)")
-      ->type_name("HOW")
-      ->capture_default_str();
+  add_egl_options(verify_cmd, &verify.egl);
   verify_cmd->add_option("--grid", verify.engine.grid, "Grid resolution for the engine, as for replay")
       ->type_name("NX,NY,NZ");
   CLI::Option* verify_tbv_opt =
@@ -248,9 +259,7 @@ int run(int argc, char** argv) {
   report_cmd->add_option("--frame-count", rep.frame_count, "Use the first N frames; -1: all")
       ->type_name("N")
       ->capture_default_str();
-  report_cmd->add_option("--egl-platform", rep.egl_platform, "EGL platform: auto, device or surfaceless")
-      ->type_name("NAME");
-  report_cmd->add_option("--egl-device", rep.egl_device, "EGL device index")->type_name("N");
+  add_egl_options(report_cmd, &rep.egl);
   report_cmd->add_flag("-q,--quiet", rep.quiet, "No progress bar or summary on stderr");
 
   // voxvis generate

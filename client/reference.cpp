@@ -26,22 +26,32 @@ Reference resolve_reference(Reference reference, const render::ContextOptions& c
   return reference;
 }
 
-bool parse_reference_flags(const std::string& reference, const std::string& egl_platform, int egl_device,
-                           Reference* out, render::ContextOptions* ctx, FormatError* error) {
+bool parse_reference_flags(const std::string& reference, const EglArgs& egl, Reference* out,
+                           render::ContextOptions* ctx, FormatError* error) {
   std::string message;
   if (!parse_reference(reference, out, &message)) {
     *error = FormatError{"", 0, "--reference", message};
     return false;
   }
-  if (!render::parse_platform(egl_platform, &ctx->platform, &message)) {
+  if (!render::parse_platform(egl.platform, &ctx->platform, &message)) {
     *error = FormatError{"", 0, "--egl-platform", message};
     return false;
   }
-  if (egl_device < -1) {
+  if (egl.device < -1) {
     *error = FormatError{"", 0, "--egl-device", "must be >= 0"};
     return false;
   }
-  ctx->device = egl_device;
+  ctx->device = egl.device;
+  if (!render::parse_id_readback(egl.id_readback, &ctx->id_readback, &message)) {
+    *error = FormatError{"", 0, "--id-readback", message};
+    return false;
+  }
+  if (egl.query_readback != "batch" && egl.query_readback != "each") {
+    *error = FormatError{"", 0, "--query-readback", "unknown read-back '" + egl.query_readback +
+                                                        "' (known: batch, each)"};
+    return false;
+  }
+  ctx->batch_queries = egl.query_readback == "batch";
   *out = resolve_reference(*out, *ctx);
   return true;
 }

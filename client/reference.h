@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "cli.h"
 #include "voxvis/format.h"
 #include "voxvis/render.h"
 #include "voxvis/types.h"
@@ -26,11 +27,11 @@ bool parse_reference(const std::string& text, Reference* out, std::string* messa
 /// names one wants EGL, and a typo must not fall back quietly.
 Reference resolve_reference(Reference reference, const render::ContextOptions& ctx);
 
-/// The flags both commands share: --reference (resolved as above),
-/// --egl-platform and --egl-device into `ctx`. False, with `error` naming
-/// the flag, on a bad value.
-bool parse_reference_flags(const std::string& reference, const std::string& egl_platform, int egl_device,
-                           Reference* out, render::ContextOptions* ctx, FormatError* error);
+/// The flags both commands share: --reference (resolved as above), and the
+/// EGL flags (--egl-platform, --egl-device, --id-readback, --query-readback)
+/// into `ctx`. False, with `error` naming the flag, on a bad value.
+bool parse_reference_flags(const std::string& reference, const EglArgs& egl, Reference* out,
+                           render::ContextOptions* ctx, FormatError* error);
 
 /// The ray caster's exactly visible set at width x height: the first hits of
 /// the rays through the pixel centres (every object of a tie), ascending.

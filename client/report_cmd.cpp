@@ -111,8 +111,7 @@ int run_report(const ReportArgs& args) {
   Reference reference_kind = Reference::Auto;
   render::ContextOptions ctx;
   FormatError flag_error;
-  if (!parse_reference_flags(args.reference, args.egl_platform, args.egl_device, &reference_kind, &ctx, &flag_error))
-    return report(flag_error);
+  if (!parse_reference_flags(args.reference, args.egl, &reference_kind, &ctx, &flag_error)) return report(flag_error);
   if (args.frame_count < -1 || args.frame_count == 0)
     return report(FormatError{"", 0, "--frame-count", "must be >= 1 (or -1: all)"});
 

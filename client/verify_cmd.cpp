@@ -131,10 +131,7 @@ int run_verify(const VerifyArgs& args) {
   Reference reference_kind = Reference::Auto;
   render::ContextOptions ctx;
   FormatError flag_error;
-  if (!parse_reference_flags(args.reference, args.egl_platform, args.egl_device, &reference_kind, &ctx, &flag_error))
-    return report(flag_error);
-  if (!render::parse_id_readback(args.id_readback, &ctx.id_readback, &message))
-    return report(FormatError{"", 0, "--id-readback", message});
+  if (!parse_reference_flags(args.reference, args.egl, &reference_kind, &ctx, &flag_error)) return report(flag_error);
   if (reference_kind == Reference::Raycast && method == render::Method::Queries)
     return report(FormatError{"", 0, "--method", "queries needs the EGL reference (not --reference raycast)"});
   if (args.first_frame < 0) return report(FormatError{"", 0, "--first-frame", "must be >= 0"});

@@ -108,7 +108,10 @@ bool Renderer::Impl::ensure_model(std::string* note, std::string* error) {
     refine.model_path = default_cost_model_path();
     refine.model_path_set = true;
   }
-  const std::string device = info.gl_renderer + " | " + info.gl_version;
+  // Query costs depend on how results are read: a model measured one query
+  // at a time (before query buffers) is not this one's.
+  const std::string device =
+      info.gl_renderer + " | " + info.gl_version + (info.query_buffer ? " | query buffer" : "");
   const std::string& path = refine.model_path;
   nlohmann::json file;
   std::string unreadable;
@@ -158,10 +161,9 @@ bool Renderer::Impl::ensure_model(std::string* note, std::string* error) {
   auto draw = [](std::size_t k, GLsizei count = 1) {
     glDrawElementsInstancedBaseInstance(GL_TRIANGLES, 36, GL_UNSIGNED_BYTE, nullptr, count, static_cast<GLuint>(k));
   };
-  auto read_all = [&](int count) {
-    GLuint v = 0;
-    for (int q = 0; q < count; ++q) glGetQueryObjectuiv(queries[static_cast<std::size_t>(q)], GL_QUERY_RESULT, &v);
-  };
+  std::vector<GLuint> results;
+  // As the levels read them: a round at once where the query buffer is on.
+  auto read_all = [&](int count) { read_queries(static_cast<std::size_t>(count), &results); };
   constexpr int kCalls = 200, kFull = 16, kReps = 5;
   const double pixels = static_cast<double>(kW) * kH;
   CostModel c;

@@ -177,11 +177,8 @@ void query_round(Renderer::Impl& m, const std::vector<std::size_t>& probes, std:
   glFlush();
   stats->query_ms += ms_since(t);
   t = Clock::now();
-  passed->assign(probes.size(), 0);
-  for (std::size_t q = 0; q < probes.size(); ++q) {
-    glGetQueryObjectuiv(m.queries[q], GL_QUERY_RESULT, &(*passed)[q]);
-    stats->pixels += (*passed)[q];
-  }
+  m.read_queries(probes.size(), passed);
+  for (const GLuint p : *passed) stats->pixels += p;
   stats->wait_ms += ms_since(t);
   stats->queries += static_cast<std::uint32_t>(probes.size());
   stats->draw_calls += static_cast<std::uint32_t>(probes.size());

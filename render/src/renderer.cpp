@@ -182,10 +182,11 @@ std::string ContextInfo::summary() const {
   s += gl_version;
   if (!why.empty()) s += " (" + why + ")";
   s += id_set_on_gpu ? "; ids read back as a set" : "; ids read back as an image";
+  s += query_buffer ? ", query results a round at once" : ", query results one by one";
   return s;
 }
 
-bool Renderer::Impl::setup(IdReadback readback, std::string* error) {
+bool Renderer::Impl::setup(const ContextOptions& options, std::string* error) {
   GLint max_rb = 0, dims[2] = {0, 0};
   glGetIntegerv(GL_MAX_RENDERBUFFER_SIZE, &max_rb);
   glGetIntegerv(GL_MAX_VIEWPORT_DIMS, dims);
@@ -236,7 +237,8 @@ bool Renderer::Impl::setup(IdReadback readback, std::string* error) {
   glEnable(GL_DEPTH_CLAMP);
   glEnable(GL_DEPTH_TEST);
   if (!setup_meshes(error)) return false;
-  if (!setup_id_set(readback, error)) return false;
+  if (!setup_id_set(options.id_readback, error)) return false;
+  setup_query_buffer(options.batch_queries);
   glUseProgram(program);
   glBindVertexArray(vao);
   return gl_ok("set-up", error);
@@ -276,7 +278,7 @@ std::unique_ptr<Renderer> Renderer::create(const ContextOptions& options, std::s
   auto impl = std::make_unique<Impl>();
   impl->egl = detail::EglContext::create(options, &impl->info, error);
   if (!impl->egl) return nullptr;
-  if (!impl->setup(options.id_readback, error)) return nullptr;
+  if (!impl->setup(options, error)) return nullptr;
   return std::unique_ptr<Renderer>(new Renderer(std::move(impl)));
 }
 
@@ -470,23 +472,24 @@ bool Renderer::visible(const std::vector<ObjectDesc>& objects, const Camera& cam
     stats->read_ms = ms_since(t0);
   } else {
     // One query per candidate in the frustum, drawn against the finished
-    // depth buffer; all issued before any is read.
+    // depth buffer; all issued before any is read. GL_SAMPLES_PASSED, as the
+    // refinement levels: a query object keeps the kind it was first begun
+    // with, and they share the pool.
     t0 = Clock::now();
     std::vector<GLsizei> probe;
     for (GLsizei k = 0; k < n; ++k)
       if (wanted(m.drawn_ids[static_cast<std::size_t>(k)])) probe.push_back(k);
     m.begin_probes(probe.size());
     for (std::size_t q = 0; q < probe.size(); ++q)
-      m.probe(GL_ANY_SAMPLES_PASSED, q, static_cast<std::size_t>(probe[q]));
+      m.probe(GL_SAMPLES_PASSED, q, static_cast<std::size_t>(probe[q]));
     glFlush();
     stats->queries = static_cast<std::uint32_t>(probe.size());
     stats->query_ms = ms_since(t0);
     t0 = Clock::now();
-    for (std::size_t q = 0; q < probe.size(); ++q) {
-      GLuint passed = 0;
-      glGetQueryObjectuiv(m.queries[q], GL_QUERY_RESULT, &passed);
-      if (passed) out->push_back(m.drawn_ids[static_cast<std::size_t>(probe[q])]);
-    }
+    std::vector<GLuint> passed;
+    m.read_queries(probe.size(), &passed);
+    for (std::size_t q = 0; q < probe.size(); ++q)
+      if (passed[q]) out->push_back(m.drawn_ids[static_cast<std::size_t>(probe[q])]);
     stats->read_ms = ms_since(t0);
     m.end_probes();
     if (!m.gl_ok("the occlusion queries", error)) return false;

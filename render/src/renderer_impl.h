@@ -195,11 +195,15 @@ struct Renderer::Impl {
   std::vector<ObjectId> ids;        // Last id image, once read (read_id_image).
   std::vector<std::uint32_t> raw;         // The image as read: instance numbers.
   std::vector<std::uint32_t> seen_flags;  // Per instance number: seen at a pixel centre.
-  // The id set gathered on the GPU (id_set.cpp); no program: OpenGL 4.2,
+  // The id set gathered on the GPU (readback.cpp); no program: OpenGL 4.2,
   // the image is read instead.
   GLuint seen_program = 0, seen_buffer = 0;
   GLint su_size = -1;
   std::size_t seen_capacity = 0;
+  // Query results read a round at once (readback.cpp); 0: below OpenGL 4.4,
+  // or ContextOptions::batch_queries off.
+  GLuint query_buffer = 0;
+  std::size_t query_buffer_capacity = 0;
   /// The last Method::Ids call's image, not read yet: last_ids() reads it
   /// (of ids_w x ids_h), until the renderer draws again.
   bool ids_pending = false;
@@ -215,6 +219,7 @@ struct Renderer::Impl {
       glDeleteTextures(1, &id_tex);
       glDeleteRenderbuffers(1, &depth_rb);
       glDeleteBuffers(1, &seen_buffer);
+      glDeleteBuffers(1, &query_buffer);
       glDeleteProgram(seen_program);
       glDeleteBuffers(1, &corner_vbo);
       glDeleteBuffers(1, &index_ebo);
@@ -225,9 +230,13 @@ struct Renderer::Impl {
     }
   }
 
-  bool setup(IdReadback readback, std::string* error);
-  // The id set (id_set.cpp).
+  bool setup(const ContextOptions& options, std::string* error);
+  // What comes back from the GPU (readback.cpp).
   bool setup_id_set(IdReadback readback, std::string* error);
+  void setup_query_buffer(bool wanted);
+  /// The results of queries[0, count), waiting for them: one read of the
+  /// query buffer, else one glGetQueryObjectuiv each.
+  void read_queries(std::size_t count, std::vector<GLuint>* out);
   /// seen[k] != 0 for every instance number k (1..n) the w x h id image holds.
   bool gather_seen(std::size_t n, int w, int h, std::vector<std::uint32_t>* seen, std::string* error);
   /// Reads the pending id image into `ids`.

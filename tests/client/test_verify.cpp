@@ -172,17 +172,27 @@ TEST_F(Verify, TheEnginesPvsMissesNothingOnGeneratedScenes) {
     for (const auto& j : out) EXPECT_TRUE(j["missed"].empty()) << j.dump();
   }
   // The two read-backs of the id image (the set gathered on the GPU, the
-  // whole image) find the same visible sets.
-  std::vector<nlohmann::json> by[2];
-  for (int k = 0; k < 2; ++k) {
-    const Result r = run({"verify", "--scene", path("paper.json"), "--frames", path("paper.jsonl"), "--resolution",
-                          "128x72", "--id-readback", k == 0 ? "set" : "image"});
+  // whole image), and of query results (a round at once, one by one), find
+  // the same visible sets.
+  const std::vector<std::vector<std::string>> ways = {{"--id-readback", "set"},
+                                                      {"--id-readback", "image"},
+                                                      {"--method", "queries", "--full", "--query-readback", "batch"},
+                                                      {"--method", "queries", "--full", "--query-readback", "each"}};
+  const std::vector<std::string> logged = {"ids read back as a", "ids read back as an image",
+                                           "query results a round at once", "query results one by one"};
+  std::vector<nlohmann::json> by[4];
+  for (std::size_t k = 0; k < ways.size(); ++k) {
+    std::vector<std::string> args = {"verify", "--scene", path("paper.json"), "--frames", path("paper.jsonl"),
+                                     "--resolution", "128x72"};
+    args.insert(args.end(), ways[k].begin(), ways[k].end());
+    const Result r = run(args);
     ASSERT_EQ(r.status, 0) << r.err;
-    EXPECT_THAT(r.err, HasSubstr(k == 0 ? "ids read back as a" : "ids read back as an image"));
+    EXPECT_THAT(r.err, HasSubstr(logged[k]));
     for (const auto& j : lines(r.out)) by[k].push_back(j["visible"]);
+    ASSERT_EQ(by[k].size(), 10u);
   }
   EXPECT_EQ(by[0], by[1]);
-  ASSERT_EQ(by[0].size(), 10u);
+  EXPECT_EQ(by[2], by[3]);
 }
 
 TEST_F(Verify, FindsExactlyTheMissesOfACutPvs) {
@@ -478,6 +488,7 @@ TEST_F(Verify, BadInputIsAClearError) {
        "--method: queries needs the EGL reference (not --reference raycast)"},
       {with({"--egl-platform", "x11"}), "--egl-platform: unknown EGL platform 'x11'"},
       {with({"--id-readback", "gpu"}), "--id-readback: unknown id read-back 'gpu' (known: auto, set, image)"},
+      {with({"--query-readback", "lots"}), "--query-readback: unknown read-back 'lots' (known: batch, each)"},
       {with({"--egl-device", "7", "--egl-platform", "device"}), "--egl-device 7 does not exist"},
       {with({"--first-frame", "9"}), "--first-frame: is 9, the file has 4 frames"},
       {with({"--frame-count", "10"}), "--frame-count: asked for frames 0 to 9, the file has 4"},

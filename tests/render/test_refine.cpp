@@ -115,6 +115,65 @@ TEST(Refine, LevelsKeepEveryVisibleObjectOfTheirInput) {
   EXPECT_GT(ternary_tightened, 0) << "the ternary tree tightened none of " << frames << " PVSs";
 }
 
+TEST(Refine, QueryResultsReadARoundAtOnceChangeNoAnswer) {
+  // The levels that query, and Method::Queries, with the results of a round
+  // read through a query buffer and one by one: the same sets and the same
+  // counts of queries and pixels, frame after frame (near-optimal's state
+  // carried over), under one cost model.
+  std::unique_ptr<Renderer> batched, each;
+  for (auto [batch, out] : {std::pair{true, &batched}, std::pair{false, &each}}) {
+    render::ContextOptions o;
+    o.batch_queries = batch;
+    std::string why;
+    *out = Renderer::create(o, &why);
+    if (!*out) GTEST_SKIP() << "no renderer on this machine: " << why;
+  }
+  EXPECT_FALSE(each->info().query_buffer);
+  if (!batched->info().query_buffer) GTEST_SKIP() << "no query buffer objects: " << batched->info().summary();
+  render::CostModel even;  // Queries worth it for boxes of a few objects.
+  even.query_setup_us = 5.0;
+  even.render_setup_us = 2.0;
+  even.render_triangle_ns = 50.0;
+  batched->set_cost_model(even);
+  each->set_cost_model(even);
+  constexpr int kW = 96, kH = 54;
+  int frames = 0, queried = 0;
+  for (std::uint64_t seed = 5; seed <= 7; ++seed) {
+    batched->reset_refinement();
+    each->reset_refinement();
+    const SceneDesc scene = random_scene(random_scene_params(seed), seed);
+    std::unique_ptr<Scene> engine;
+    ASSERT_TRUE(Scene::create(scene, SceneOptions{}, &engine).ok);
+    const ViewerId viewer = engine->add_viewer();
+    Scratch scratch;
+    const std::vector<Camera> path = random_camera_path(scene, seed + 70);
+    for (std::size_t f = 0; f < path.size(); f += 6, ++frames) {
+      FrameResult fr;
+      ASSERT_TRUE(engine->frame(viewer, path[f], static_cast<double>(f) / 60.0, scratch, &fr).ok);
+      const std::string where = "seed " + std::to_string(seed) + " frame " + std::to_string(f);
+      std::string error;
+      for (const char* name : {"queries", "hierarchical", "near-optimal"}) {
+        std::vector<ObjectId> a, b;
+        RefineStats sa, sb;
+        ASSERT_TRUE(batched->refine(level(name), scene.objects, path[f], kW, kH, fr.pvs, &a, &sa, &error)) << error;
+        ASSERT_TRUE(each->refine(level(name), scene.objects, path[f], kW, kH, fr.pvs, &b, &sb, &error)) << error;
+        EXPECT_EQ(a, b) << where << " " << name;
+        EXPECT_EQ(sa.queries, sb.queries) << where << " " << name;
+        EXPECT_EQ(sa.pixels, sb.pixels) << where << " " << name;
+        queried += static_cast<int>(sa.queries);
+      }
+      std::vector<ObjectId> a, b;
+      render::VisibleStats va, vb;
+      const render::VisibleOptions full{kW, kH, render::Method::Queries};
+      ASSERT_TRUE(batched->visible(scene.objects, path[f], full, nullptr, &a, &va, &error)) << error;
+      ASSERT_TRUE(each->visible(scene.objects, path[f], full, nullptr, &b, &vb, &error)) << error;
+      EXPECT_EQ(a, b) << where;
+    }
+  }
+  EXPECT_GT(frames, 6);
+  EXPECT_GT(queried, frames * 10) << "too few queries to compare";
+}
+
 /// A wall at z = -10 in front of a crowd of 200 small balls (ids 2..201),
 /// seen from the origin down -z.
 struct WallAndCrowd {
@@ -247,7 +306,8 @@ TEST(Refine, TheCostModelIsMeasuredOnceAndKeptPerDevice) {
     ASSERT_TRUE(r->cost_model(path, &a, &note, &error)) << error;
     EXPECT_NE(note.find("measured in"), std::string::npos) << note;
     EXPECT_NE(note.find("saved to " + path), std::string::npos) << note;
-    EXPECT_EQ(a.device, r->info().gl_renderer + " | " + r->info().gl_version);
+    EXPECT_EQ(a.device, r->info().gl_renderer + " | " + r->info().gl_version +
+                            (r->info().query_buffer ? " | query buffer" : ""));
     for (double v : {a.render_setup_us, a.query_setup_us, a.query_latency_us, a.calibration_ms}) {
       EXPECT_TRUE(std::isfinite(v));
       EXPECT_GT(v, 0.0);

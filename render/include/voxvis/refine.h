@@ -93,7 +93,9 @@ struct RefineStats {
 /// renderer's own context: microseconds per call, nanoseconds per triangle
 /// or fragment.
 struct CostModel {
-  std::string device;                 ///< GL_RENDERER and GL_VERSION it was measured on.
+  /// GL_RENDERER and GL_VERSION it was measured on, and " | query buffer"
+  /// when query results are read a round at once (ContextOptions).
+  std::string device;
   double render_setup_us = 0.0;       ///< T_r^s: a draw call.
   double render_triangle_ns = 0.0;    ///< T_r^tri: a triangle drawn.
   double render_fragment_ns = 0.0;    ///< T_r^f: a fragment shaded and written.

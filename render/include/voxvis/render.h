@@ -72,6 +72,11 @@ const char* id_readback_name(IdReadback r);
 struct ContextOptions {
   Platform platform = Platform::Auto;
   IdReadback id_readback = IdReadback::Auto;
+  /// Occlusion queries' results read a round at once: the queries write
+  /// them into a query buffer object on the GPU (OpenGL 4.4) and one read
+  /// brings them back. False: one glGetQueryObjectuiv a query (a round trip
+  /// each on a GPU), kept for comparison.
+  bool batch_queries = true;
   /// EGL device index on the device platform, as eglQueryDevicesEXT lists
   /// them (--egl-device N); -1: the first device that is not a software
   /// renderer, else the software one. The device platform is taken when the
@@ -89,6 +94,7 @@ struct ContextInfo {
   std::string gl_renderer;               ///< GL_RENDERER, e.g. "llvmpipe (LLVM 15.0.6, 256 bits)".
   std::string gl_version;                ///< GL_VERSION.
   bool id_set_on_gpu = false;            ///< Method::Ids reads the set, not the image (IdReadback).
+  bool query_buffer = false;             ///< Query results read a round at once (batch_queries).
   /// Why this platform and device: "the first of 2 devices that is not a
   /// software renderer", "--egl-device 1 of 2", "no device platform: ...".
   std::string why;
