@@ -16,7 +16,7 @@
 namespace voxvis::cli {
 namespace {
 
-enum class Kind { Paper, Indoor, VoxelWorld, VoxelCave, City };
+enum class Kind { Paper, Indoor, VoxelWorld, VoxelCave, City, Arena };
 
 /// A preset and the meaning, default and range of its --size.
 struct Preset {
@@ -42,7 +42,13 @@ constexpr Preset kPresets[] = {
      "256 x 256 columns are about 500,000 blocks"},
     {"city", Kind::City, 5, 8, 0, 1, 64, "blocks per side",
      "64 x 64 blocks are a grid of 1028 x 32 x 1028, 34 million voxels"},
+    {"arena", Kind::Arena, 3, 4, 0, 2, 32, "rooms per side",
+     "32 x 32 rooms are a grid of 1025 x 26 x 1304, 35 million voxels"},
 };
+
+/// The arena's players: a match's 24 by default; 1,000 keeps a frames file
+/// of 100,000 frames under 10 GB.
+constexpr int kArenaPlayers = 24, kMaxArenaPlayers = 1000;
 
 /// Frames: 100,000 at 60 per second is almost half an hour.
 constexpr int kMaxFrames = 100000;
@@ -206,19 +212,33 @@ int run_generate(const GenerateArgs& args) {
     return write_files(args, scene, make_walkthrough(scene, walk_params));
   }
 
-  // The static scenes have no moving objects; --size sizes them.
-  const auto not_paper = [&](const char* flag) {
-    std::string message = "applies to preset 'paper' only, not to '";
+  // The other presets are sized by --size; only the arena has movers, its
+  // players (--dynamic).
+  const auto not_here = [&](const char* flag, const char* presets) {
+    std::string message = "applies to ";
+    message += presets;
+    message += " only, not to '";
     message += preset->name;
-    message += "' (a static scene, sized by --size)";
+    message += preset->kind == Kind::Arena ? "' (its players are --dynamic; it is sized by --size)"
+                                           : "' (a static scene, sized by --size)";
     return report(FormatError{"", 0, flag, message});
   };
-  if (args.objects) return not_paper("--objects");
-  if (args.dynamic) return not_paper("--dynamic");
+  if (args.objects) return not_here("--objects", "preset 'paper'");
+  if (args.dynamic && preset->kind != Kind::Arena) return not_here("--dynamic", "presets 'paper' and 'arena'");
   int x = preset->default_x, z = preset->default_z;
   if (args.size) {
     std::string message;
     if (!parse_size(*args.size, *preset, &x, &z, &message)) return report(FormatError{"", 0, "--size", message});
+  }
+  if (preset->kind == Kind::Arena) {
+    const int players = args.dynamic.value_or(kArenaPlayers);
+    if (players < 0 || players > kMaxArenaPlayers) {
+      return report(FormatError{"", 0, "--dynamic",
+                                "the arena's players: must be in [0, " + std::to_string(kMaxArenaPlayers) +
+                                    "], got " + std::to_string(players)});
+    }
+    const ArenaLevel arena = make_arena(x, players, args.frames, seed);
+    return write_files(args, arena.scene, arena.frames);
   }
   ScenePath path;
   switch (preset->kind) {
@@ -226,7 +246,8 @@ int run_generate(const GenerateArgs& args) {
     case Kind::VoxelWorld: path = make_voxel_world(x, args.frames, false, seed); break;
     case Kind::VoxelCave: path = make_voxel_world(x, args.frames, true, seed); break;
     case Kind::City: path = make_city(x, args.frames, seed); break;
-    case Kind::Paper: break;  // Handled above.
+    case Kind::Paper:
+    case Kind::Arena: break;  // Handled above.
   }
   return write_files(args, path.scene, camera_frames(path.cameras));
 }

@@ -270,7 +270,9 @@ int run(int argc, char** argv) {
                       "Scene preset: paper (clusters of spheres, some moving, as in Batagelo & Wu), "
                       "indoor (rooms, walls and doorways), voxel-world (terrain of unit blocks, path "
                       "over the surface), voxel-cave (the same world, path through a cave), city "
-                      "(box buildings and parked cars, path along a street)")
+                      "(box buildings and parked cars, path along a street), arena (a Quake-3-sized level "
+                      "of rooms, corridors and two storeys with 24 players running through it, a "
+                      "first-person walk)")
       ->type_name("NAME")
       ->capture_default_str();
   gen_cmd->add_option("--scene-out", gen.scene_out, "Scene file to write")
@@ -283,13 +285,14 @@ int run(int argc, char** argv) {
              "--size", [&gen](const std::string& text) { gen.size = text; },
                       "Not paper: indoor, rooms per side, N or XxZ (1..100, default 6x3); voxel-world "
                       "and voxel-cave, columns per side (16..256, default 64); city, blocks per side "
-                      "(1..64, default 8)")
+                      "(1..64, default 8); arena, rooms per side (2..32, default 4)")
       ->type_name("N|XxZ");
   gen_cmd->add_option_function<int>(
              "--objects", [&gen](const int& n) { gen.objects = n; }, "paper: number of spheres (default 5000)")
       ->type_name("N");
   gen_cmd->add_option_function<int>(
-             "--dynamic", [&gen](const int& n) { gen.dynamic = n; }, "paper: how many of them move (default 200)")
+             "--dynamic", [&gen](const int& n) { gen.dynamic = n; },
+             "paper: how many of them move (default 200); arena: players (0..1000, default 24)")
       ->type_name("N");
   gen_cmd->add_option("--frames", gen.frames, "Number of frames (60 per second), 0..100000")
       ->type_name("N")
@@ -297,16 +300,17 @@ int run(int argc, char** argv) {
   gen_cmd->add_option_function<std::string>(
              "--seed", [&gen](const std::string& text) { gen.seed = text; },
              "Random seed of the scene (default 1 for paper; for the others the benchmarks' seed: "
-             "indoor 7, voxel-world and voxel-cave 11, city 5); paper's walkthrough uses seed + 1")
+             "indoor 7, voxel-world and voxel-cave 11, city 5, arena 3); paper's walkthrough uses seed + 1")
       ->type_name("N");
   gen_cmd->footer(
-      "The same arguments always produce byte-identical files. Only paper has moving\n"
-      "objects; the other presets are static and their frames carry no moves.\n"
+      "The same arguments always produce byte-identical files. Only paper and arena\n"
+      "have moving objects; the other presets are static and their frames carry no moves.\n"
       "Examples:\n"
       "  voxvis generate --preset paper --scene-out paper.json --frames-out paper.jsonl\n"
       "  voxvis generate --preset indoor --size 4x2 --scene-out indoor.json --frames-out indoor.jsonl\n"
       "  voxvis generate --preset voxel-cave --frames 600 --scene-out cave.json --frames-out cave.jsonl\n"
-      "  voxvis generate --preset city --size 4 --seed 9 --scene-out city.json --frames-out city.jsonl");
+      "  voxvis generate --preset city --size 4 --seed 9 --scene-out city.json --frames-out city.jsonl\n"
+      "  voxvis generate --preset arena --frames 600 --scene-out arena.json --frames-out arena.jsonl");
 
   // voxvis import
   voxvis::cli::ImportArgs imp;

@@ -17,6 +17,11 @@
 //     the path over the surface or through a cave), make_city (8 x 8 blocks
 //     of box buildings with parked cars, driven through at street level).
 //
+//   arena[/ob:W]
+//     make_arena (4 x 4 rooms on two storeys, 24 players running at 320
+//     units/s), its 200-frame first-person walk, ping-pong like the
+//     walkthrough (the players' moves replayed backwards on the way back).
+//
 //   indoor/meshes[/ob:W], city/meshes[/ob:W]
 //     The same levels and paths with every static box a mesh of 12
 //     triangles (a cube, placed at the box's centre): the mesh layout's cost
@@ -139,7 +144,7 @@ struct Recording {
   std::vector<double> in_view;
 };
 
-enum class Path { Walkthrough, Indoor, Surface, Cave, City, IndoorMeshes, CityMeshes };
+enum class Path { Walkthrough, Indoor, Surface, Cave, City, IndoorMeshes, CityMeshes, Arena };
 
 /// The exactly visible set is the ray caster's at 1024 x 576 jittered rays
 /// (one per cell) on every 20th frame. The caster samples, so this is a
@@ -154,6 +159,11 @@ Recording record(Path which) {
   if (which == Path::Walkthrough) {
     out.scene = make_paper_scene(PaperSceneParams{});
     out.frames = make_walkthrough(out.scene, WalkthroughParams{});
+    if (out.frames.size() >= 2) out.dt = out.frames[1].t - out.frames[0].t;
+  } else if (which == Path::Arena) {
+    ArenaLevel a = make_arena(4, 24, 200, 3);
+    out.scene = std::move(a.scene);
+    out.frames = std::move(a.frames);
     if (out.frames.size() >= 2) out.dt = out.frames[1].t - out.frames[0].t;
   } else {
     const bool indoor = which == Path::Indoor || which == Path::IndoorMeshes;
@@ -880,6 +890,7 @@ void register_all() {
                                                 {"voxel_world/surface", Path::Surface},
                                                 {"voxel_world/cave", Path::Cave},
                                                 {"city", Path::City},
+                                                {"arena", Path::Arena},
                                                 {"indoor/meshes", Path::IndoorMeshes},
                                                 {"city/meshes", Path::CityMeshes}};
   for (const auto& [name, which] : paths)

@@ -196,13 +196,14 @@ TEST_F(Generate, SameArgumentsSameBytesOtherSeedOtherScene) {
 
 TEST_F(Generate, FlagsThatDoNotApplyAreRefused) {
   expect_refused({"--preset", "city", "--objects", "10"}, "--objects", {"'paper' only", "'city'"});
-  expect_refused({"--preset", "indoor", "--dynamic", "0"}, "--dynamic", {"'paper' only", "'indoor'"});
+  expect_refused({"--preset", "indoor", "--dynamic", "0"}, "--dynamic", {"'paper' and 'arena' only", "'indoor'"});
+  expect_refused({"--preset", "arena", "--objects", "10"}, "--objects", {"'paper' only", "'arena'", "--dynamic"});
   expect_refused({"--preset", "voxel-cave", "--objects", "5000", "--dynamic", "200"}, "--objects",
                  {"'voxel-cave'"});
   expect_refused({"--preset", "paper", "--size", "8"}, "--size", {"'paper'"});
   expect_refused({"--size", "8"}, "--size", {"'paper'"});  // paper is the default preset
   expect_refused({"--preset", "castle"}, "--preset",
-                 {"'castle'", "paper, indoor, voxel-world, voxel-cave, city"});
+                 {"'castle'", "paper, indoor, voxel-world, voxel-cave, city, arena"});
 }
 
 TEST_F(Generate, BadValuesAreRefused) {
@@ -216,6 +217,10 @@ TEST_F(Generate, BadValuesAreRefused) {
   expect_refused({"--preset", "voxel-world", "--size", "99999999999999999999999"}, "--size", {"[16, 256]"});
   expect_refused({"--preset", "indoor", "--size", "6x0"}, "--size", {"rooms per side", "[1, 100]", "'6x0'"});
   expect_refused({"--preset", "indoor", "--size", "101"}, "--size", {"[1, 100]", "100,000 objects"});
+  expect_refused({"--preset", "arena", "--size", "1"}, "--size", {"rooms per side", "[2, 32]", "'1'"});
+  expect_refused({"--preset", "arena", "--size", "33"}, "--size", {"[2, 32]", "million voxels"});
+  expect_refused({"--preset", "arena", "--dynamic", "-1"}, "--dynamic", {"players", "[0, 1000]", "-1"});
+  expect_refused({"--preset", "arena", "--dynamic", "1001"}, "--dynamic", {"[0, 1000]", "1001"});
   for (const char* bad : {"", "x", "6x", "x3", "6x3x2", "six", "4x-2", " 4", "4.5"}) {
     expect_refused({"--preset", "indoor", "--size", bad}, "--size",
                    {"N or XxZ", quoted(bad)});
@@ -229,10 +234,36 @@ TEST_F(Generate, BadValuesAreRefused) {
   expect_refused({"--seed", "-5"}, "--seed", {"'-5'"});
 }
 
+TEST_F(Generate, TheArenaIsTheLibrarysWithItsPlayersMoves) {
+  // Byte for byte make_arena's scene and frames (every player moved each
+  // frame); --dynamic sets the players; replay accepts it with no move too
+  // fast. The default is 4 x 4 rooms, 24 players, seed 3.
+  Result r = gen("arena", {"--preset", "arena", "--size", "2", "--frames", "12", "--seed", "9", "--dynamic", "6"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  const ArenaLevel expected = make_arena(2, 6, 12, 9);
+  EXPECT_EQ(scene("arena"), scene_to_json(expected.scene));
+  std::string text;
+  for (const FrameInput& f : expected.frames) {
+    text += frame_to_json(f);
+    text += '\n';
+  }
+  EXPECT_EQ(frames("arena"), text);
+  const std::vector<std::string> lines = lines_of(frames("arena"));
+  ASSERT_EQ(lines.size(), 12u);
+  EXPECT_EQ(nlohmann::json::parse(lines[5]).at("moves").size(), 6u);
+  r = run({"replay", "--scene", path("arena.json"), "--frames", path("arena.jsonl"), "-q"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  for (const std::string& l : lines_of(r.out))
+    EXPECT_EQ(nlohmann::json::parse(l).at("stats").at("speed_violations").get<int>(), 0) << l;
+  r = gen("default", {"--preset", "arena", "--frames", "1"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(scene("default"), scene_to_json(make_arena(4, 24, 1, 3).scene));
+}
+
 TEST_F(Generate, HelpNamesThePresetsAndSizes) {
   const Result r = run({"generate", "--help"});
   EXPECT_EQ(r.status, 0);
-  for (const char* word : {"--size", "indoor", "voxel-world", "voxel-cave", "city", "6x3"}) {
+  for (const char* word : {"--size", "indoor", "voxel-world", "voxel-cave", "city", "arena", "6x3"}) {
     EXPECT_THAT(r.out, HasSubstr(word));
   }
 }

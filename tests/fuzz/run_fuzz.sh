@@ -83,11 +83,12 @@ generated() {
   [ -f "$dir/done" ] && return 0
   mkdir -p "$dir"
   local preset args
-  for preset in paper indoor city voxel-world; do
+  for preset in paper indoor city voxel-world arena; do
     case "$preset" in
       paper) args=(--objects 30 --dynamic 5) ;;
       indoor|city) args=(--size 1) ;;
       voxel-world) args=(--size 16) ;;
+      arena) args=(--size 2 --dynamic 3) ;;
     esac
     "$cli" generate --preset "$preset" "${args[@]}" --frames 3 \
       --scene-out "$dir/$preset.json" --frames-out "$dir/$preset.jsonl" >/dev/null

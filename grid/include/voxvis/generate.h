@@ -3,7 +3,8 @@
 // preset follows the evaluation scene of Batagelo & Wu (section 6): clusters
 // of spheres of varied size, some of them moving, in bounds 100 x 60 x 100,
 // seen by a walkthrough camera. The static scenes (indoor level, voxel world,
-// city) come with a camera path of their own. Every result is a pure
+// city) come with a camera path of their own; the arena with players running
+// through it and a first-person walk. Every result is a pure
 // function of the arguments, the same on every platform (voxvis/rng.h).
 #pragma once
 
@@ -81,6 +82,27 @@ ScenePath make_voxel_world(int size, int frames, bool cave_path, std::uint64_t s
 /// eye height 1.7, looking ahead and glancing into the cross streets.
 /// blocks >= 1; frames >= 0.
 ScenePath make_city(int blocks, int frames, std::uint64_t seed);
+
+/// A level like the ones players fight in, on the scale of a Quake-3 arena
+/// and in its units: rooms x rooms rooms of 496 x 496 units with walls 16
+/// thick, a corridor 128 wide between every two rows, two storeys (floors at
+/// y 0 and 192, roof at 384): about half the rooms have an upper floor with
+/// a stair of 12 steps up to it, the others are halls two storeys high with
+/// four pillars, and a walkway runs over every corridor. Doorways 96 wide
+/// and 128 high join the rooms to their corridors and neighbours on each
+/// storey both sides have. `players` boxes of 32 x 32 x 56 (dynamic,
+/// max_speed 320) run along random routes through the doorways at 320 units
+/// a second, alternately on floor 0 and floor 1; the camera walks floor 0 at
+/// the same speed, eye 48 above the floor, 90 degrees across at 4:3 (fov_y
+/// 73.74, aspect 16:9, near 4, far 8192), swaying and every 4 s looking back
+/// for half a second. Grid voxels of 16 units, so walls fill whole voxels.
+/// Frames at 60 per second, each moving every player. rooms >= 2 (less is
+/// taken as 2), players >= 0, frames >= 0.
+struct ArenaLevel {
+  SceneDesc scene;
+  std::vector<FrameInput> frames;
+};
+ArenaLevel make_arena(int rooms, int players, int frames, std::uint64_t seed);
 
 /// The frames of a camera path: line i (1-based) is camera i - 1 at time
 /// (i - 1) / fps, without moves (as make_walkthrough numbers and times them).
