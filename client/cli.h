@@ -43,8 +43,30 @@ bool load_scene(const EngineArgs& args, std::string* text, SceneDesc* desc, Scen
 bool build_scene(const EngineArgs& args, std::string* text, const SceneDesc& desc, const SceneOptions& options,
                  std::unique_ptr<Scene>* scene, int* exit_code);
 
+/// --eye-extent, --omnidirectional, --horizon: a region for every frame,
+/// over what the frames file says (docs/formats.md, "Regions").
+struct RegionArgs {
+  std::string eye_extent;         ///< "H" or "HX,HY,HZ", world units; empty: the file's.
+  bool omnidirectional = false;   ///< Every frame omnidirectional.
+  std::optional<double> horizon;  ///< Seconds; empty: the file's.
+};
+
+/// What RegionArgs set, parsed and checked.
+struct RegionOverride {
+  bool extent_set = false, horizon_set = false, omnidirectional = false;
+  Vec3 extent{0.0};
+  double horizon = 0.0;
+  /// Sets the fields these flags name on `camera`.
+  void apply(Camera* camera) const;
+};
+
+/// Parses the flags; false, with `error` naming the flag, on a bad value
+/// (the engine's rules: each half extent in [0, 1e12], horizon in [0, 1e9]).
+bool parse_region_args(const RegionArgs& args, RegionOverride* out, FormatError* error);
+
 struct ReplayArgs {
   EngineArgs engine;
+  RegionArgs region;
   std::string frames;  ///< Frames file, JSON Lines.
   std::string out;     ///< Output file; empty: stdout.
   bool quiet = false;
@@ -72,6 +94,8 @@ struct VerifyArgs {
   std::int64_t first_frame = 0;
   std::int64_t frame_count = -1;  ///< -1: to the end.
   EglArgs egl;
+  RegionArgs region;              ///< As for replay: set on every frame.
+  int region_eyes = 8;            ///< Region frames: random eyes besides the centre and corners.
   bool quiet = false;
 };
 
@@ -174,6 +198,7 @@ int run_health(const HealthArgs& args);
 
 struct ViewArgs {
   NetArgs net;
+  RegionArgs region;
   std::string scene;   ///< Scene id on the server.
   std::string frames;  ///< Frames file, JSON Lines.
   std::string out;     ///< Output file; empty: stdout.
@@ -186,6 +211,7 @@ int run_view(const ViewArgs& args);
 
 struct TickArgs {
   NetArgs net;
+  RegionArgs region;
   std::string scene;   ///< Scene id on the server.
   std::string frames;  ///< Frames file, JSON Lines.
   /// One viewer: the output file (empty: stdout); several: a directory for
@@ -210,6 +236,7 @@ int run_simulate(const SimulateArgs& args);
 
 struct LoadgenArgs {
   NetArgs net;
+  RegionArgs region;
   std::string scene;
   int viewers = 1;          ///< Concurrent View streams, or viewers in each tick (--tick).
   double rate = 30.0;       ///< Frames per second per viewer, Hz (ticks per second with --tick).

@@ -333,8 +333,18 @@ class CameraSource {
     far_ = 2.0 * std::sqrt(extent.x * extent.x + extent.y * extent.y + extent.z * extent.z);
   }
 
+  /// The region flags' fields, set on every camera `at` gives.
+  void set_region(const RegionOverride& region) { region_ = region; }
+
   /// Camera of viewer `v` at its tick `tick`, wall time `t` (seconds).
   Camera at(int v, std::uint64_t tick, double t) const {
+    Camera c = path_at(v, tick, t);
+    region_.apply(&c);
+    return c;
+  }
+
+ private:
+  Camera path_at(int v, std::uint64_t tick, double t) const {
     if (!cameras_.empty()) {
       const std::size_t n = cameras_.size();
       const std::size_t offset = static_cast<std::size_t>(v) * n / static_cast<std::size_t>(viewers_);
@@ -356,8 +366,8 @@ class CameraSource {
     return c;
   }
 
- private:
   static constexpr double kLapSeconds = 20.0;
+  RegionOverride region_;
   std::vector<Camera> cameras_;
   int viewers_;
   Vec3 center_{0.0};

@@ -90,6 +90,9 @@ int run_loadgen(const LoadgenArgs& args) {
                               "with --tick, at most " + std::to_string(kMaxTickViewers) +
                                   " (the server's limit of viewers in one tick), got " + std::to_string(args.viewers)});
   }
+  RegionOverride region;
+  FormatError region_error;
+  if (!parse_region_args(args.region, &region, &region_error)) return report(region_error);
   std::vector<Camera> cameras;
   if (!args.frames.empty() && !read_cameras(args.frames, &cameras)) return kExitError;
   // Open the report file now, so that a bad path fails before the run.
@@ -106,11 +109,12 @@ int run_loadgen(const LoadgenArgs& args) {
   if (const grpc::Status st = control->get_scene_stats(args.scene, &info); !st.ok()) {
     return report_status(st, args.net.server, "");
   }
-  const CameraSource source =
+  CameraSource source =
       cameras.empty()
           ? CameraSource(client::from_proto(info.bounds_min()), client::from_proto(info.bounds_max()),
                          args.viewers)
           : CameraSource(std::move(cameras), args.viewers);
+  source.set_region(region);
 
   // The server's counters before (--metrics): its CPU time per answer is
   // the difference over the run divided by the answers.

@@ -44,6 +44,22 @@ void add_net_options(CLI::App* cmd, voxvis::cli::NetArgs* net, bool fleet = true
       ->type_name("NAME");
 }
 
+/// The region flags (replay, view, tick, loadgen): set on every frame's
+/// camera, over the frames file's fields.
+void add_region_options(CLI::App* cmd, voxvis::cli::RegionArgs* region) {
+  cmd->add_option("--eye-extent", region->eye_extent,
+                  "Every frame's answer holds for every eye of the box eye +- H (world units, each in "
+                  "[0, 1e12]; H alone: the same on all three axes)")
+      ->type_name("H|HX,HY,HZ");
+  cmd->add_flag("--omnidirectional", region->omnidirectional,
+                "Every frame's answer holds in every direction (near and far still bound distance)");
+  cmd->add_option_function<double>(
+         "--horizon", [region](const double& s) { region->horizon = s; },
+         "Every frame's answer holds until this many seconds after its time, each moving object anywhere "
+         "its max_speed reaches (in [0, 1e9])")
+      ->type_name("SECONDS");
+}
+
 /// The headless renderer's options (verify, report).
 void add_egl_options(CLI::App* cmd, voxvis::cli::EglArgs* egl) {
   cmd->add_option("--egl-platform", egl->platform, "EGL platform: auto, device or surfaceless")
@@ -124,6 +140,7 @@ int run(int argc, char** argv) {
                          "Width in pixels of the conservative occlusion buffer (8..4096, "
                          "or 0: off; default 160)")
       ->type_name("PIXELS");
+  add_region_options(replay_cmd, &replay.region);
   replay_cmd->add_flag("-q,--quiet", replay.quiet, "No progress line and no summary on stderr");
   replay_cmd->footer(
       "Output: one line per frame, {\"frame\", \"pvs\", \"wake\", \"stats\"}; ids ascending.\n"
@@ -176,6 +193,12 @@ int run(int argc, char** argv) {
   verify_cmd->add_option("--occlusion-buffer", verify.engine.occlusion_buffer,
                          "Occlusion buffer width for the engine, as for replay (0: off; default 160)")
       ->type_name("PIXELS");
+  add_region_options(verify_cmd, &verify.region);
+  verify_cmd->add_option("--region-eyes", verify.region_eyes,
+                         "Region frames: eyes sampled at random in the eye box besides its centre and 8 "
+                         "corners (0..1000)")
+      ->type_name("N")
+      ->capture_default_str();
   verify_cmd->add_flag("-q,--quiet", verify.quiet, "No progress, miss lines or summary on stderr");
   verify_cmd->footer(
       "Output: one line per frame, {\"frame\", \"visible\", \"missed\", \"pvs_size\", \"stats\"}.\n"
@@ -450,6 +473,7 @@ int run(int argc, char** argv) {
       ->type_name("FILE");
   view_cmd->add_flag("--delta", view.delta,
                      "Ask for PVS deltas and reassemble them (same output)");
+  add_region_options(view_cmd, &view.region);
   view_cmd->add_flag("-q,--quiet", view.quiet, "No progress line and no summary on stderr");
   view_cmd->add_option("--every", view.every,
                        "Print a one-line summary of every Nth frame on stderr (PVS size and "
@@ -480,6 +504,7 @@ int run(int argc, char** argv) {
                        "viewer-<k>.jsonl. Written whole or not at all")
       ->type_name("PATH");
   tick_cmd->add_flag("--delta", tick.delta, "Ask for PVS deltas and reassemble them (same output)");
+  add_region_options(tick_cmd, &tick.region);
   tick_cmd->add_flag("-q,--quiet", tick.quiet, "No progress line and no summary on stderr");
   tick_cmd->footer(
       "Lock-step, one Tick stream: tick k carries line k's moves and time and each viewer's\n"
@@ -528,6 +553,7 @@ int run(int argc, char** argv) {
                           "orbit inside the scene's bounds)")
       ->type_name("FILE");
   loadgen_cmd->add_flag("--delta", gen_load.delta, "Ask for PVS deltas");
+  add_region_options(loadgen_cmd, &gen_load.region);
   loadgen_cmd->add_option("--json", gen_load.json, "Also write the report as JSON")
       ->type_name("FILE");
   loadgen_cmd->add_option("--connections", gen_load.connections,

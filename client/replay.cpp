@@ -112,6 +112,9 @@ int run_replay(const ReplayArgs& args) {
   SceneDesc desc;
   SceneOptions options;
   int code = kExitOk;
+  RegionOverride region;
+  FormatError region_error;
+  if (!parse_region_args(args.region, &region, &region_error)) return report(region_error);
   if (!load_scene(args.engine, &text, &desc, &options, &code)) return code;
   // Open the frames and the output before the (possibly slow) scene build,
   // so that a bad path fails at once.
@@ -148,6 +151,7 @@ int run_replay(const ReplayArgs& args) {
       progress.finish();
       return report(error);
     }
+    region.apply(&frame.camera);
     if (!frame.moves.empty()) {
       moves = MoveReport{};
       if (const Status st = scene->apply_moves(frame.t, frame.moves, &moves); !st.ok) {

@@ -27,9 +27,13 @@ int run_tick(const TickArgs& args) {
   if (!valid_scene_id(args.scene, &message)) return report(FormatError{"", 0, "--scene", message});
   if (args.viewers > 1 && args.out.empty())
     return report(FormatError{"", 0, "--out", "with --viewers above 1, name a directory for the viewers' files"});
+  RegionOverride region;
+  FormatError region_error;
+  if (!parse_region_args(args.region, &region, &region_error)) return report(region_error);
   std::vector<FrameInput> frames;
   std::vector<int> lines;  // Each frame's line in the file, for errors.
   if (!read_frames(args.frames, "tick", &frames, &lines)) return kExitError;
+  for (FrameInput& f : frames) region.apply(&f.camera);
 
   // One output a viewer: the file itself for one, DIR/viewer-<k>.jsonl for several.
   const auto viewers = static_cast<std::size_t>(args.viewers);

@@ -23,6 +23,7 @@
 #include "output_file.h"
 #include "reference.h"
 #include "voxvis/format.h"
+#include "voxvis/raycast.h"
 #include "voxvis/render.h"
 #include "voxvis/scene.h"
 
@@ -135,6 +136,10 @@ int run_verify(const VerifyArgs& args) {
   if (reference_kind == Reference::Raycast && method == render::Method::Queries)
     return report(FormatError{"", 0, "--method", "queries needs the EGL reference (not --reference raycast)"});
   if (args.first_frame < 0) return report(FormatError{"", 0, "--first-frame", "must be >= 0"});
+  RegionOverride region;
+  if (!parse_region_args(args.region, &region, &flag_error)) return report(flag_error);
+  if (args.region_eyes < 0 || args.region_eyes > 1000)
+    return report(FormatError{"", 0, "--region-eyes", "must be in [0, 1000], got " + std::to_string(args.region_eyes)});
   if (args.frame_count < -1) return report(FormatError{"", 0, "--frame-count", "must be >= 0"});
 
   std::string text;
@@ -212,6 +217,7 @@ int run_verify(const VerifyArgs& args) {
   int line_no = 0;
   std::string line, out_line;
   Progress progress(tty, slice);
+  bool region_noted = false;
 
   auto fail = [&](int status) {
     progress.finish();
@@ -221,6 +227,7 @@ int run_verify(const VerifyArgs& args) {
     ++line_no;
     if (blank(line)) continue;
     if (!parse_frame_line(line, args.frames, line_no, &frame, &error)) return fail(report(error));
+    region.apply(&frame.camera);
     for (std::size_t i = 0; i < frame.moves.size(); ++i) {
       // Checked here too: with --pvs no engine sees the moves.
       const Move& mv = frame.moves[i];
@@ -253,15 +260,36 @@ int run_verify(const VerifyArgs& args) {
       ++index;
       continue;
     }
-    const bool ok = by_egl ? renderer->visible(objects, frame.camera, render::VisibleOptions{w, h, method},
-                                               checks_all ? nullptr : &pvs, &vis, &rs, &message)
-                           : raycast_visible(objects, frame.camera, w, h, &vis, &rs, &message);
-    if (!ok) return fail(report(FormatError{args.frames, line_no, "", message}));
-    // A miss as report counts one (reference.h): EGL's sightings confirmed
-    // in double precision, the edge-only ones dismissed.
-    if (!confirm_misses(by_egl ? renderer.get() : nullptr, objects, frame.camera, w, h,
-                        method == render::Method::Ids, vis, pvs, &missed, &edge_only, &message))
-      return fail(report(FormatError{args.frames, line_no, "", message}));
+    if (is_region(frame.camera)) {
+      // A region: the ray caster's sampling of it (raycast::region_visible),
+      // every sighting a double-precision first hit.
+      if (!region_noted && !args.quiet) {
+        progress.finish();
+        std::fprintf(stderr, "voxvis: region frames are checked by the CPU ray caster's sampling: %dx%d rays "
+                             "a view from the eye box's centre, 8 corners and %d random eyes%s\n",
+                     w, h, args.region_eyes, frame.camera.omnidirectional ? ", six faces each" : "");
+        region_noted = true;
+      }
+      raycast::RegionSampling sampling;
+      sampling.random_eyes = args.region_eyes;
+      sampling.rays = raycast::pixel_centres(w, h);
+      sampling.seed = static_cast<std::uint64_t>(index) + 1;
+      vis = raycast::region_visible(objects, frame.camera, sampling);
+      rs = render::VisibleStats{};
+      missed.clear();
+      edge_only.clear();
+      std::set_difference(vis.begin(), vis.end(), pvs.begin(), pvs.end(), std::back_inserter(missed));
+    } else {
+      const bool ok = by_egl ? renderer->visible(objects, frame.camera, render::VisibleOptions{w, h, method},
+                                                 checks_all ? nullptr : &pvs, &vis, &rs, &message)
+                             : raycast_visible(objects, frame.camera, w, h, &vis, &rs, &message);
+      if (!ok) return fail(report(FormatError{args.frames, line_no, "", message}));
+      // A miss as report counts one (reference.h): EGL's sightings confirmed
+      // in double precision, the edge-only ones dismissed.
+      if (!confirm_misses(by_egl ? renderer.get() : nullptr, objects, frame.camera, w, h,
+                          method == render::Method::Ids, vis, pvs, &missed, &edge_only, &message))
+        return fail(report(FormatError{args.frames, line_no, "", message}));
+    }
     out_line = "{\"frame\":" + std::to_string(index) + ",\"visible\":" + json_ids(vis) +
                ",\"missed\":" + json_ids(missed) + ",\"edge_only\":" + json_ids(edge_only) +
                ",\"pvs_size\":" + std::to_string(pvs.size()) +

@@ -39,6 +39,9 @@ std::string where_for(const grpc::Status& st, bool protocol_error, const std::st
 int run_view(const ViewArgs& args) {
   std::string message;
   if (!valid_scene_id(args.scene, &message)) return report(FormatError{"", 0, "--scene", message});
+  RegionOverride region;
+  FormatError region_error;
+  if (!parse_region_args(args.region, &region, &region_error)) return report(region_error);
   std::ifstream frames(args.frames, std::ios::binary);
   if (!frames) {
     return report(FormatError{args.frames, 0, "", std::string("cannot open: ") + std::strerror(errno)});
@@ -76,6 +79,7 @@ int run_view(const ViewArgs& args) {
     ++line_no;
     if (blank(line)) continue;
     if (!parse_frame_line(line, args.frames, line_no, &frame, &error)) return fail(report(error));
+    region.apply(&frame.camera);
     // Once the file has moved something, every frame's time goes through the
     // simulation stream (an empty batch when it has no moves): the scene's
     // clock follows its simulation, and a viewer runs at most

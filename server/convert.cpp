@@ -208,6 +208,9 @@ Status camera_from_proto(const v1::Camera& in, bool present, Camera* out) {
   out->aspect = in.aspect();
   out->near = in.near();
   out->far = in.far();
+  out->eye_extent = in.has_eye_extent() ? vec(in.eye_extent()) : Vec3(0.0);
+  out->omnidirectional = in.omnidirectional();
+  out->horizon_s = in.horizon_s();
   Status s = validate_camera(*out);
   if (!s) return Status::Error("camera." + s.field, s.message);
   return s;
@@ -308,6 +311,7 @@ void stats_to_proto(const FrameStats& in, v1::FrameStats* out) {
   out->set_ob_objects_culled(in.ob_objects_culled);
   out->set_ob_occluders(in.ob_occluders);
   out->set_frustum_fallback(in.frustum_fallback);
+  out->set_region(in.region);
   out->set_ob_pixels_written(in.ob_pixels_written);
   out->set_cells_visited(in.cells_visited);
   out->set_cells_hidden(in.cells_hidden);

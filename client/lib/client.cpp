@@ -240,6 +240,9 @@ void to_proto(const Camera& camera, v1::Camera* out) {
   out->set_aspect(camera.aspect);
   out->set_near(camera.near);
   out->set_far(camera.far);
+  if (camera.eye_extent != Vec3(0.0)) to_proto(camera.eye_extent, out->mutable_eye_extent());
+  out->set_omnidirectional(camera.omnidirectional);
+  out->set_horizon_s(camera.horizon_s);
 }
 
 Camera from_proto(const v1::Camera& camera) {
@@ -251,6 +254,9 @@ Camera from_proto(const v1::Camera& camera) {
   c.aspect = camera.aspect();
   c.near = camera.near();
   c.far = camera.far();
+  if (camera.has_eye_extent()) c.eye_extent = from_proto(camera.eye_extent());
+  c.omnidirectional = camera.omnidirectional();
+  c.horizon_s = camera.horizon_s();
   return c;
 }
 
@@ -275,6 +281,7 @@ FrameStats from_proto(const v1::FrameStats& stats) {
   s.ob_objects_culled = stats.ob_objects_culled();
   s.ob_occluders = stats.ob_occluders();
   s.frustum_fallback = stats.frustum_fallback();
+  s.region = stats.region();
   s.ob_pixels_written = stats.ob_pixels_written();
   s.cells_visited = stats.cells_visited();
   s.cells_hidden = stats.cells_hidden();

@@ -4,6 +4,8 @@
 Tick k carries line k's time and moves, and one camera per viewer: viewer v
 walks the recording from its own start (line v*n/N), as `voxvis tick` does.
 Each viewer's answers are written as the lines `voxvis replay` writes.
+With --ping-ms, each viewer's camera becomes a region chosen from its round
+trip (region.py; docs/server.md, "Hiding players over a network").
 See README.md: the stubs are generated from proto/voxvis/v1/voxvis.proto.
 """
 import argparse
@@ -25,6 +27,7 @@ except ModuleNotFoundError as e:
     sys.exit(2)
 
 import idset
+import region
 
 # Exit status, as the voxvis CLI's: 2 bad input or a refused call, 1 the
 # server broke the contract.
@@ -56,6 +59,12 @@ def shape_error(frame):
             return f"missing key '{key}'"
         if not (vector if key in ("eye", "dir", "up") else number)(frame[key]):
             return f"{key}: expected {'[x, y, z]' if key in ('eye', 'dir', 'up') else 'a number'}"
+    if "eye_extent" in frame and not vector(frame["eye_extent"]):
+        return "eye_extent: expected [hx, hy, hz]"
+    if not isinstance(frame.get("omnidirectional", False), bool):
+        return "omnidirectional: expected true or false"
+    if not number(frame.get("horizon_s", 0)):
+        return "horizon_s: expected a number"
     if not isinstance(frame.get("moves", []), list):
         return "moves: expected an array"
     for i, m in enumerate(frame.get("moves", [])):
@@ -105,9 +114,21 @@ def move(m):
     return out
 
 
-def camera(f):
-    return pb.Camera(eye=vec3(f["eye"]), dir=vec3(f["dir"]), up=vec3(f["up"]), fov_y_deg=f["fov_y_deg"],
-                     aspect=f["aspect"], near=f["near"], far=f["far"])
+def camera(f, player=None):
+    """A frames-file camera, with its region fields; `player`, when given, is
+    (eye_extent, horizon_s) from region.region_for, set over them with every
+    direction counting."""
+    c = pb.Camera(eye=vec3(f["eye"]), dir=vec3(f["dir"]), up=vec3(f["up"]), fov_y_deg=f["fov_y_deg"],
+                  aspect=f["aspect"], near=f["near"], far=f["far"],
+                  omnidirectional=f.get("omnidirectional", False), horizon_s=f.get("horizon_s", 0.0))
+    if "eye_extent" in f:
+        c.eye_extent.CopyFrom(vec3(f["eye_extent"]))
+    if player is not None:
+        extent, horizon = player
+        c.eye_extent.CopyFrom(vec3(extent))
+        c.omnidirectional = True
+        c.horizon_s = horizon
+    return c
 
 
 def read_token(path):
@@ -141,8 +162,10 @@ def result_line(frame, pvs, wake, s):
     fields = [f'"time_us":{us(s.time_us)}', f'"traverse_us":{us(s.traverse_us)}',
               f'"render_us":{us(s.render_us)}', f'"retest_us":{us(s.retest_us)}']
     fields += [f'"{name}":{getattr(s, name)}' for name in COUNTERS]
-    fields += [f'"early_exit":{json.dumps(s.early_exit)}', f'"frustum_fallback":{json.dumps(s.frustum_fallback)}',
-               f'"front_voxels_culled":{s.front_voxels_culled}', f'"front_objects_culled":{s.front_objects_culled}']
+    fields += [f'"early_exit":{json.dumps(s.early_exit)}', f'"frustum_fallback":{json.dumps(s.frustum_fallback)}']
+    if s.region:  # Only for a region camera.
+        fields.append('"region":true')
+    fields += [f'"front_voxels_culled":{s.front_voxels_culled}', f'"front_objects_culled":{s.front_objects_culled}']
     if s.ob_width > 0:  # Only with the occlusion buffer on.
         fields += [f'"{name}":{getattr(s, name)}' for name in BUFFER]
     return f'{{"frame":{frame},"pvs":{ids(pvs)},"wake":{ids(wake)},"stats":{{{",".join(fields)}}}}}\n'
@@ -266,6 +289,12 @@ async def run(args):
     outs = open_outputs(args.out, args.viewers)
 
     n, viewers = len(frames), args.viewers
+    players = [None] * viewers
+    if args.ping_ms:  # Each viewer's region from its round trip (the last ping repeats).
+        for v in range(viewers):
+            ping = args.ping_ms[min(v, len(args.ping_ms) - 1)]
+            players[v] = region.region_for(ping / 1000, 1 / args.tick_hz, args.interp_ms / 1000, args.speed,
+                                           args.vertical)
     start_line = [v * n // viewers for v in range(viewers)]  # Viewer v's first frame.
     start, pvs_total, line = time.monotonic(), 0, frames[0][0]
     try:
@@ -273,7 +302,7 @@ async def run(args):
             session = TickSession(pb_grpc.VisibilityStub(channel), args.scene, args.delta, metadata)
             for k, (line, frame) in enumerate(frames):
                 moves = [move(m) for m in frame.get("moves", [])]
-                cameras = {v: camera(frames[(start_line[v] + k) % n][1]) for v in range(viewers)}
+                cameras = {v: camera(frames[(start_line[v] + k) % n][1], players[v]) for v in range(viewers)}
                 for viewer, answer, pvs, wake in await session.tick(k, frame["t"], moves, cameras):
                     if answer.HasField("error"):
                         raise Failure(f"{args.frames}:{frames[(start_line[viewer] + k) % n][0]}: "
@@ -310,8 +339,25 @@ def main():
     p.add_argument("--token-file", help="file holding the bearer token; default $VOXVIS_TOKEN_FILE")
     p.add_argument("--tls-ca", help="PEM root certificates: TLS on")
     p.add_argument("--tls-server-name", help="name the server's certificate holds, if not the host of --server")
+    p.add_argument("--ping-ms", type=lambda s: [float(x) for x in s.split(",")],
+                   help="round trips PING[,PING...] in ms, one a viewer (the last repeats): each viewer's "
+                        "camera becomes the region its round trip needs")
+    p.add_argument("--tick-hz", type=float, default=64.0, help="with --ping-ms: ticks a second (default 64)")
+    p.add_argument("--interp-ms", type=float, default=0.0, help="with --ping-ms: interpolation delay, ms")
+    p.add_argument("--speed", type=float, default=320.0, help="with --ping-ms: players' top speed, units/s")
+    p.add_argument("--vertical", type=float, default=0.0, help="with --ping-ms: eye's vertical reach, units")
     p.add_argument("-q", "--quiet", action="store_true", help="no summary on stderr")
     args = p.parse_args()
+    if args.ping_ms is not None:
+        if not args.tick_hz > 0 or args.tick_hz == float("inf"):
+            p.error(f"--tick-hz: must be > 0, got {args.tick_hz}")
+        try:
+            region.region_for(min(args.ping_ms) / 1000, 1 / args.tick_hz, args.interp_ms / 1000, args.speed,
+                              args.vertical)
+            region.region_for(max(args.ping_ms) / 1000, 1 / args.tick_hz, args.interp_ms / 1000, args.speed,
+                              args.vertical)
+        except ValueError as e:
+            p.error(f"--ping-ms/--interp-ms/--speed/--vertical: {e}")
     if args.viewers < 1 or args.viewers > 1024:
         p.error(f"--viewers: must be in [1, 1024], got {args.viewers}")
     if args.viewers > 1 and not args.out:

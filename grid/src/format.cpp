@@ -543,7 +543,7 @@ bool parse_frame_dom(Checker& ck, const json& root, FrameInput* out) {
                             describe(root));
   }
   if (!ck.known_keys(root, top, {"t", "eye", "dir", "up", "fov_y_deg", "aspect", "near", "far",
-                                 "moves"})) {
+                                 "eye_extent", "omnidirectional", "horizon_s", "moves"})) {
     return false;
   }
   FrameInput frame;
@@ -570,6 +570,14 @@ bool parse_frame_dom(Checker& ck, const json& root, FrameInput* out) {
                             NumField{"near", &cam.near}, NumField{"far", &cam.far}}) {
     if ((v = ck.require(root, top, f.key)) == nullptr || !ck.number(*v, f.key, f.dst)) return false;
   }
+  // The region (optional; docs/formats.md, "Regions").
+  if (const auto e = root.find("eye_extent"); e != root.end() && !ck.vec3(*e, "eye_extent", &cam.eye_extent, false))
+    return false;
+  if (const auto o = root.find("omnidirectional"); o != root.end() &&
+                                                     !ck.boolean(*o, "omnidirectional", &cam.omnidirectional))
+    return false;
+  if (const auto h = root.find("horizon_s"); h != root.end() && !ck.number(*h, "horizon_s", &cam.horizon_s))
+    return false;
   const Status cam_status = validate_camera(cam);
   if (!cam_status.ok) return ck.fail(cam_status.field, cam_status.message);
 

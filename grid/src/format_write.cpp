@@ -189,6 +189,17 @@ std::string frame_to_json(const FrameInput& frame) {
   append_number(out, c.near);
   out += ", \"far\": ";
   append_number(out, c.far);
+  // The region's fields only when off their defaults: a point camera's line
+  // is what it always was.
+  if (c.eye_extent != Vec3(0.0)) {
+    out += ", \"eye_extent\": ";
+    append_vec3(out, c.eye_extent);
+  }
+  if (c.omnidirectional) out += ", \"omnidirectional\": true";
+  if (c.horizon_s != 0.0) {
+    out += ", \"horizon_s\": ";
+    append_number(out, c.horizon_s);
+  }
   if (!frame.moves.empty()) {
     out += ", \"moves\": [";
     bool first = true;
@@ -266,6 +277,7 @@ std::string result_to_json(std::size_t frame_index, const FrameResult& result) {
   out += s.early_exit ? "true" : "false";
   out += ",\"frustum_fallback\":";
   out += s.frustum_fallback ? "true" : "false";
+  if (s.region) out += ",\"region\":true";  // Only for regions (docs/formats.md).
   count("front_voxels_culled", s.front_voxels_culled);
   count("front_objects_culled", s.front_objects_culled);
   if (s.ob_width > 0) {

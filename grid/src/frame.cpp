@@ -20,6 +20,7 @@
 #include <shared_mutex>
 
 #include "numeric.h"
+#include "region.h"
 #include "traverse.h"
 #include "voxvis/inspect.h"
 
@@ -38,6 +39,7 @@ struct FrameRun {
   Scene::Impl& s;
   Scratch::Impl& w;
   const detail::WorldFrustum wf;
+  const detail::RegionReach reach;  ///< Whether, and what, a region reaches (region.h).
   ViewerId viewer;
   double t;
   FrameStats st{};
@@ -106,6 +108,21 @@ void put_in_pvs(FrameRun& f, std::uint32_t slot) {
   if (f.w.obj_mark[slot] == f.w.frame) return;
   f.w.obj_mark[slot] = f.w.frame;
   f.w.pvs.push_back(slot);
+}
+
+/// Phase 2 for a region (region.h): every object and TBV the region can
+/// reach, with no occlusion test (docs/design.md, "Regions").
+void reach_region(FrameRun& f) {
+  Scene::Impl& s = f.s;
+  f.st.region = true;
+  f.w.ob.begin(f.wf, 0);
+  f.st.ob_width = 0;
+  for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
+    const Obj& o = s.objs[slot];
+    const double speed = o.dynamic ? o.max_speed : 0.0;
+    if (o.under_tbv && f.reach.may_reach(f.wf, o.tbv_lo, o.tbv_hi, speed)) f.w.deferred.push_back(slot);
+    if (f.reach.may_reach(f.wf, o.box_lo(), o.box_hi(), speed)) put_in_pvs(f, slot);
+  }
 }
 
 /// Phase 2: the traversal. An eye so far away that shell indices lose
@@ -318,7 +335,8 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
   if (w.trace != nullptr) w.trace->clear();
   w.begin(s.objs.size(), s.opaque_boxes.size(), s.bricks.size(), s.cell_base[static_cast<std::size_t>(s.pyr.levels)],
           s.static_triangles);
-  FrameRun f{s, w, detail::make_world_frustum(camera), viewer, t, FrameStats{}, w.wake};
+  FrameRun f{s, w, detail::make_world_frustum(camera), detail::make_region_reach(camera), viewer, t, FrameStats{},
+             w.wake};
   std::uint64_t tick_split[2] = {0, 0};  // Traversal; beyond the grid and retest.
   bool expired = false;
   if (Status st = begin(f, clock, &expired); !st) return st;
@@ -328,9 +346,13 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
     out->positions_epoch = s.moves_epoch;
     const std::uint64_t t0 = detail::ticks();
     w.render_ticks = 0;
-    traverse(f);
+    if (f.reach.on) {
+      reach_region(f);  // Every object tested: nothing beyond the grid is left.
+    } else {
+      traverse(f);
+    }
     const std::uint64_t t1 = detail::ticks();
-    beyond_grid(f);
+    if (!f.reach.on) beyond_grid(f);
     retest(f);
     tick_split[0] = t1 - t0;
     tick_split[1] = detail::ticks() - t1;

@@ -45,6 +45,15 @@ Status validate_camera(const Camera& c) {
     return Status::Error("near", "must be > 0, got " + number_text(c.near));
   if (!std::isfinite(c.far) || !(c.far > c.near))
     return Status::Error("far", "must be finite and > near, got " + number_text(c.far));
+  if (!finite3(c.eye_extent)) return Status::Error("eye_extent", "must be three finite numbers");
+  for (int a = 0; a < 3; ++a) {
+    const double h = c.eye_extent[a];
+    if (!(h >= 0.0)) return Status::Error("eye_extent", "half extents must be >= 0, got " + number_text(h));
+    if (h > kMaxCoordinate) return Status::Error("eye_extent", "half extent exceeds " + number_text(kMaxCoordinate));
+  }
+  if (!std::isfinite(c.horizon_s) || !(c.horizon_s >= 0.0) || !(c.horizon_s <= kMaxHorizon))
+    return Status::Error("horizon_s", "must be in [0, " + number_text(kMaxHorizon) + "] seconds, got " +
+                                          number_text(c.horizon_s));
   return Status::Ok();
 }
 

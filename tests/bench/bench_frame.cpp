@@ -22,6 +22,13 @@
 //     units/s), its 200-frame first-person walk, ping-pong like the
 //     walkthrough (the players' moves replayed backwards on the way back).
 //
+//   walkthrough|indoor|city|arena/region:Lms[/omni]
+//     The same paths with every camera a region (Camera::eye_extent,
+//     horizon_s, omnidirectional): what L ms reach at the path's top speed
+//     (region_reach), the eye box a quarter as high as wide; the buffer at
+//     128 for the point frames' sake (a region does not use it).
+//     dynamic_in_pvs_mean counts the moving objects (the arena's players).
+//
 //   indoor/meshes[/ob:W], city/meshes[/ob:W]
 //     The same levels and paths with every static box a mesh of 12
 //     triangles (a cube, placed at the box's centre): the mesh layout's cost
@@ -113,6 +120,7 @@
 #include <thread>
 #include <memory>
 #include <string>
+#include <unordered_set>
 #include <vector>
 
 #include <glm/common.hpp>
@@ -277,7 +285,26 @@ double percentile(std::vector<double> v, double q) {
 
 /// Replays a recording ping-pong, one frame per iteration; grid 0 keeps the
 /// scene's own.
-void BM_Path(benchmark::State& state, Path which, glm::ivec3 grid, int ob) {
+/// The fastest the camera of a recording moves, units a second.
+double path_speed(const Recording& rec) {
+  double fastest = 0.0;
+  for (std::size_t k = 1; k < rec.frames.size(); ++k)
+    fastest = std::max(fastest, glm::length(rec.frames[k].camera.eye - rec.frames[k - 1].camera.eye) / rec.dt);
+  return fastest;
+}
+
+/// A region over a camera: what `lookahead` seconds at `speed` reach (the
+/// eye box a quarter as high as it is wide), every direction when `omni`.
+Camera with_region(Camera c, double lookahead, double speed, bool omni) {
+  if (lookahead <= 0.0) return c;
+  const double r = speed * lookahead;
+  c.eye_extent = Vec3(r, 0.25 * r, r);
+  c.omnidirectional = omni;
+  c.horizon_s = lookahead;
+  return c;
+}
+
+void BM_Region(benchmark::State& state, Path which, glm::ivec3 grid, int ob, double lookahead_ms, bool omni) {
   const Recording& rec = recording(which);
   if (rec.frames.empty()) {
     state.SkipWithError("empty path");
@@ -298,6 +325,10 @@ void BM_Path(benchmark::State& state, Path which, glm::ivec3 grid, int ob) {
   std::size_t step = 0;
   FrameResult result;
   std::vector<ObjectDesc> objects = desc.objects;  // For frustum culling alone.
+  const double speed = path_speed(rec), lookahead = lookahead_ms * 1e-3;
+  std::unordered_set<ObjectId> dynamic_ids;
+  for (const ObjectDesc& o : desc.objects)
+    if (o.dynamic) dynamic_ids.insert(o.id);
   auto run_step = [&]() -> bool {
     const std::size_t k = ping_pong(step, n);
     const double t = static_cast<double>(step) * rec.dt;
@@ -306,7 +337,7 @@ void BM_Path(benchmark::State& state, Path which, glm::ivec3 grid, int ob) {
       if (!scene->apply_moves(t, rec.frames[k].moves).ok) return false;
       test::apply_moves_to(&objects, rec.frames[k].moves);
     }
-    return scene->frame(viewer, rec.frames[k].camera, t, scratch, &result).ok;
+    return scene->frame(viewer, with_region(rec.frames[k].camera, lookahead, speed, omni), t, scratch, &result).ok;
   };
   // Warm-up: the first frame treats everything as visible.
   for (int i = 0; i < 10; ++i) {
@@ -317,7 +348,7 @@ void BM_Path(benchmark::State& state, Path which, glm::ivec3 grid, int ob) {
   }
   std::vector<double> times, vfc_times;
   double voxels = 0.0, ob_voxels = 0.0, ob_objects = 0.0, pvs = 0.0, cells = 0.0, cells_hidden = 0.0;
-  double traverse = 0.0, render = 0.0, retest = 0.0, whole = 0.0;
+  double traverse = 0.0, render = 0.0, retest = 0.0, whole = 0.0, movers = 0.0;
   std::vector<double> pvs_at(n, -1.0), voxels_at(n, -1.0);
   std::vector<int> edge_only(n, 0);
   for (auto _ : state) {
@@ -337,6 +368,7 @@ void BM_Path(benchmark::State& state, Path which, glm::ivec3 grid, int ob) {
     retest += result.stats.retest_us;
     whole += result.stats.time_us;
     pvs += static_cast<double>(result.pvs.size());
+    for (ObjectId id : result.pvs) movers += dynamic_ids.count(id) ? 1.0 : 0.0;
     if (pvs_at[k] < 0.0) {
       pvs_at[k] = static_cast<double>(result.pvs.size());
       voxels_at[k] = static_cast<double>(result.stats.voxels_visited);
@@ -355,6 +387,8 @@ void BM_Path(benchmark::State& state, Path which, glm::ivec3 grid, int ob) {
   state.counters["vfc_median_us"] = percentile(vfc_times, 0.5);
   state.counters["voxels_mean"] = voxels / frames;
   state.counters["pvs_mean"] = pvs / frames;
+  state.counters["dynamic_in_pvs_mean"] = movers / frames;
+  if (lookahead > 0.0) state.counters["region_reach"] = speed * lookahead;
   state.counters["traverse_us"] = traverse / frames;
   state.counters["render_us"] = render / frames;
   state.counters["retest_us"] = retest / frames;
@@ -389,6 +423,11 @@ void BM_Path(benchmark::State& state, Path which, glm::ivec3 grid, int ob) {
   state.counters["vfc_mean"] = rec.vfc_mean;
   state.counters["objects"] = static_cast<double>(desc.objects.size());
   state.SetItemsProcessed(static_cast<std::int64_t>(times.size()));
+}
+
+/// A path of point cameras.
+void BM_Path(benchmark::State& state, Path which, glm::ivec3 grid, int ob) {
+  BM_Region(state, which, grid, ob, 0.0, false);
 }
 
 /// The walkthrough on two grids at once, the default options: each step
@@ -898,6 +937,20 @@ void register_all() {
       benchmark::RegisterBenchmark((name + suffix(ob)).c_str(), BM_Path, which, glm::ivec3(0), ob)
           ->Iterations(398)
           ->Unit(benchmark::kMicrosecond);
+  // Regions (docs/design.md, "Regions"): the eye box and horizon of a 50,
+  // 100 and 150 ms lookahead at the path's own top speed, in the camera's
+  // frustum and in every direction; beside the point rows above.
+  const std::pair<const char*, Path> region_paths[] = {
+      {"walkthrough", Path::Walkthrough}, {"indoor", Path::Indoor}, {"city", Path::City}, {"arena", Path::Arena}};
+  for (const auto& [name, which] : region_paths)
+    for (int ms : {50, 100, 150})
+      for (bool omni : {false, true}) {
+        const std::string n = std::string(name) + "/region:" + std::to_string(ms) + "ms" + (omni ? "/omni" : "");
+        const glm::ivec3 grid = which == Path::Walkthrough ? glm::ivec3(100, 60, 100) : glm::ivec3(0);
+        benchmark::RegisterBenchmark(n.c_str(), BM_Region, which, grid, 128, static_cast<double>(ms), omni)
+            ->Iterations(which == Path::Walkthrough ? 598 : 398)
+            ->Unit(benchmark::kMicrosecond);
+      }
   const int grids[][3] = {{50, 30, 50}, {100, 60, 100}, {200, 120, 200}};
   for (const auto& g : grids)
     for (int ob : widths) {

@@ -108,6 +108,10 @@ struct FrameStats {
   /// from the grid (over 2^40 voxels) for the occlusion tests' arithmetic, or
   /// the camera's basis came out degenerate. Always conservative.
   bool frustum_fallback = false;
+  /// The camera asked for a region (Camera::eye_extent, omnidirectional,
+  /// horizon_s): answered by culling to what the region can reach, every
+  /// object and TBV tested, no occlusion (docs/design.md, "Regions").
+  bool region = false;
   /// Voxels hidden by the static opaque voxels beside them on the eye's side.
   std::uint64_t front_voxels_culled = 0;
   /// Static objects in voxels so hidden, though they touch voxels in view.

@@ -101,7 +101,30 @@ struct Camera {
   double aspect = 1.0;      ///< Width / height, in [1 / kMaxAspect, kMaxAspect].
   double near = 0.05;       ///< World units, > 0.
   double far = 1000.0;      ///< World units, > near.
+  // A region: the answer holds for every eye of a box, every direction,
+  // and every scene time of a horizon (docs/design.md, "Regions"). With all
+  // three at their defaults it is the point answer, bit for bit.
+  /// Half extents of an axis-aligned box of eye positions centred on `eye`,
+  /// world units, each in [0, kMaxCoordinate]; zero: the eye is a point.
+  Vec3 eye_extent{0.0};
+  /// Every direction counts: dir, up, fov_y_deg and aspect are then not used
+  /// for the answer (still validated); near and far still bound distance.
+  bool omnidirectional = false;
+  /// Seconds, in [0, kMaxHorizon]: the answer holds for every scene time in
+  /// [t, t + horizon_s], each dynamic object anywhere its max_speed lets it
+  /// reach from where it is at t.
+  double horizon_s = 0.0;
 };
+
+/// Longest accepted Camera::horizon_s, seconds (about 32 years).
+inline constexpr double kMaxHorizon = 1e9;
+
+/// Whether a camera asks for a region (any of eye_extent, omnidirectional,
+/// horizon_s off its default).
+inline bool is_region(const Camera& c) {
+  return c.eye_extent.x != 0.0 || c.eye_extent.y != 0.0 || c.eye_extent.z != 0.0 || c.omnidirectional ||
+         c.horizon_s != 0.0;
+}
 
 /// A new centre for a dynamic object, and for a mesh, optionally a new
 /// rotation (else it keeps its last).

@@ -162,6 +162,31 @@ std::vector<ObjectId> visible_objects(const std::vector<ObjectDesc>& objects, co
                                       const RaySampling& sampling = {}, const CastOptions& options = {},
                                       CastStats* stats = nullptr);
 
+/// How region_visible samples a region camera (Camera::eye_extent,
+/// omnidirectional, horizon_s).
+struct RegionSampling {
+  /// Eyes: the box's centre and its 8 corners, and this many more uniform
+  /// in the box (none for a point eye).
+  int random_eyes = 8;
+  /// With a horizon and dynamic objects: placements of the objects besides
+  /// where they are, each object moved by a random vector of up to
+  /// max_speed * horizon_s (the last placement: every object the whole way,
+  /// in a random direction).
+  int placements = 3;
+  /// The rays of each view: the camera's frustum, or six faces of 90 degrees
+  /// (a cube about the eye) when omnidirectional.
+  RaySampling rays{48, 48};
+  std::uint64_t seed = 1;
+};
+
+/// What a region camera sees, sampled: the union of visible_objects over the
+/// sampled eyes, views and placements (RegionSampling), ascending. A lower
+/// bound of the region's visible set: an answer conservative for the region
+/// holds every id. For a point camera, visible_objects(objects, cam,
+/// sampling.rays). Empty for an invalid camera.
+std::vector<ObjectId> region_visible(const std::vector<ObjectDesc>& objects, const Camera& cam,
+                                     const RegionSampling& sampling = {});
+
 /// The ids of the objects hit first by the single ray through image point
 /// (x, y), x, y in [-1, 1] (several on a tie; empty when the ray hits nothing).
 /// Tests every object (brute force; a mesh through its hierarchy).
