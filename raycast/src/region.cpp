@@ -3,10 +3,14 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <unordered_map>
+#include <utility>
 #include <vector>
 
+#include <glm/common.hpp>
 #include <glm/geometric.hpp>
 
+#include "voxvis/mesh.h"
 #include "voxvis/raycast.h"
 #include "voxvis/rng.h"
 #include "voxvis/scene.h"
@@ -80,11 +84,22 @@ std::vector<ObjectId> region_visible(const std::vector<ObjectDesc>& objects, con
   std::vector<ObjectId> seen;
   for (int k = 0; k < placements; ++k) {
     const std::vector<ObjectDesc> placed = placement(objects, cam.horizon_s, k, placements, rng);
+    // Omnidirectional, far bounds distance (a sphere), where a cube face's
+    // far plane reaches sqrt(3) times as far in its corners: a sighting of
+    // an object wholly farther than `far` from the eye is not one.
+    std::unordered_map<ObjectId, std::pair<Vec3, Vec3>> box;
+    if (cam.omnidirectional)
+      for (const ObjectDesc& o : placed) object_bounds(o, &box[o.id].first, &box[o.id].second);
+    const auto beyond_far = [&](ObjectId id, const Vec3& eye) {
+      const auto& [lo, hi] = box.at(id);
+      const Vec3 nearest = glm::max(glm::max(lo - eye, eye - hi), Vec3(0.0));
+      return glm::length(nearest) > cam.far * (1.0 + 1e-9);
+    };
     for (const Vec3& eye : sample_eyes(cam, std::max(0, sampling.random_eyes), rng))
       for (const Camera& view : views(cam, eye)) {
         if (!validate_camera(view).ok) continue;  // An eye beyond the coordinates' limit.
-        const std::vector<ObjectId> v = visible_objects(placed, view, sampling.rays);
-        seen.insert(seen.end(), v.begin(), v.end());
+        for (ObjectId id : visible_objects(placed, view, sampling.rays))
+          if (!cam.omnidirectional || !beyond_far(id, eye)) seen.push_back(id);
       }
   }
   std::sort(seen.begin(), seen.end());

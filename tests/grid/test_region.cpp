@@ -121,14 +121,21 @@ TEST(Region, WhatTheRegionCannotReachIsLeftOut) {
   d.objects.push_back(sphere(2, Vec3(50.0, 50.0, 10.0), 1.0));   // 40 behind.
   d.objects.push_back(sphere(3, Vec3(50.0, 50.0, 99.0), 0.5));   // Beyond far (45) + 2.
   d.objects.push_back(sphere(4, Vec3(50.0, 50.0, 47.5), 1.0));   // Behind the centre, ahead of the box's back.
+  d.objects.push_back(sphere(5, Vec3(80.0, 80.0, 80.0), 0.5));   // Diagonal, 47 from the nearest eye.
   Camera cam = camera_along(Vec3(50.0, 50.0, 50.0), Vec3(0.0, 0.0, 1.0), 60.0, 1.0, 0.05, 45.0);
   cam.eye_extent = Vec3(2.0, 2.0, 3.0);
   FrameResult fr = region_frame(d, cam);
   EXPECT_EQ(fr.pvs, (std::vector<ObjectId>{1, 4})) << ids(fr.pvs);
-  // Omnidirectional: behind counts too, within far of some eye of the box.
+  // Omnidirectional: behind counts too, within far of some eye of the box;
+  // far bounds distance, so the diagonal ball (within a cube face's far
+  // plane, beyond far) is out, for the engine and the sampled reference.
   cam.omnidirectional = true;
   fr = region_frame(d, cam);
   EXPECT_EQ(fr.pvs, (std::vector<ObjectId>{1, 2, 4})) << ids(fr.pvs);
+  const std::vector<ObjectId> sampled = raycast::region_visible(d.objects, cam);
+  EXPECT_FALSE(has(sampled, 5)) << ids(sampled);
+  EXPECT_TRUE(has(sampled, 2)) << ids(sampled);
+  EXPECT_TRUE(missing(sampled, fr.pvs).empty()) << ids(sampled);
   // A horizon lets a moving ball come within reach: its near side is 0.5
   // beyond the farthest eye's far plane (z 98); at 1 unit/s, 0.6 s will do,
   // 0.4 s will not.
