@@ -109,8 +109,10 @@ class Client {
   /// `address` only names the server in messages.
   Client(std::shared_ptr<grpc::Channel> channel, std::string token, std::string address);
 
-  /// Deadlines of the unary calls (streams have none).
-  std::chrono::milliseconds create_timeout{30'000};
+  /// Deadlines of the unary calls (streams have none). A create builds the
+  /// scene before it answers, and a large mesh level's build takes minutes
+  /// (docs/performance.md, "Creating scenes"): creates wait up to 5 minutes.
+  std::chrono::milliseconds create_timeout{300'000};
   std::chrono::milliseconds call_timeout{10'000};
 
   /// CreateScene from a voxvis-scene/1 document (the server names its lines).
