@@ -294,8 +294,9 @@ struct Walker {
       at.push_back(at.back() + std::hypot(path[i].x - path[i - 1].x, path[i].z - path[i - 1].z));
   }
   P2 point(double s, double* heading) const {
-    std::size_t i = 1;
-    while (i < path.size() && at[i] < s) ++i;
+    // The first point at or beyond s (the segment ending there holds it).
+    const auto it = std::lower_bound(at.begin() + 1, at.end(), s);
+    std::size_t i = static_cast<std::size_t>(it - at.begin());
     if (i >= path.size()) {
       if (heading && path.size() > 1) *heading = segment_heading(path.size() - 1);
       return path.back();

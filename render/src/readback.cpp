@@ -38,31 +38,6 @@ void main() {
 }
 )";
 
-GLuint compile_compute(const char* source, std::string* error) {
-  const GLuint shader = glCreateShader(GL_COMPUTE_SHADER);
-  glShaderSource(shader, 1, &source, nullptr);
-  glCompileShader(shader);
-  GLint ok = 0;
-  glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
-  if (!ok) {
-    char log[1024] = {0};
-    glGetShaderInfoLog(shader, sizeof log, nullptr, log);
-    *error = std::string("compute shader compile failed: ") + log;
-    glDeleteShader(shader);
-    return 0;
-  }
-  const GLuint program = glCreateProgram();
-  glAttachShader(program, shader);
-  glLinkProgram(program);
-  glDeleteShader(shader);
-  glGetProgramiv(program, GL_LINK_STATUS, &ok);
-  if (!ok) {
-    *error = "compute shader link failed";
-    glDeleteProgram(program);
-    return 0;
-  }
-  return program;
-}
 
 }  // namespace
 
@@ -74,7 +49,7 @@ bool Renderer::Impl::setup_id_set(IdReadback readback, std::string* error) {
   const bool software = info.software || info.gl_renderer.find("llvmpipe") != std::string::npos ||
                         info.gl_renderer.find("softpipe") != std::string::npos;
   if (readback == IdReadback::Image || (readback == IdReadback::Auto && software)) return true;
-  seen_program = compile_compute(kSeenShader, error);
+  seen_program = detail::link_stages({{GL_COMPUTE_SHADER, kSeenShader}}, error);
   if (seen_program == 0) return false;
   su_size = glGetUniformLocation(seen_program, "u_size");
   glGenBuffers(1, &seen_buffer);

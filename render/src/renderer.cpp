@@ -73,19 +73,23 @@ constexpr std::uint8_t kTriangles[detail::kBoxIndices] = {
 }  // namespace
 
 GLuint detail::link_program(const char* vertex, const char* fragment, std::string* error) {
-  const GLuint vs = compile(GL_VERTEX_SHADER, vertex, error);
-  if (vs == 0) return 0;
-  const GLuint fs = compile(GL_FRAGMENT_SHADER, fragment, error);
-  if (fs == 0) {
-    glDeleteShader(vs);
-    return 0;
+  return link_stages({{GL_VERTEX_SHADER, vertex}, {GL_FRAGMENT_SHADER, fragment}}, error);
+}
+
+GLuint detail::link_stages(std::initializer_list<std::pair<GLenum, const char*>> stages, std::string* error) {
+  std::vector<GLuint> shaders;
+  for (const auto& [type, source] : stages) {
+    const GLuint s = compile(type, source, error);
+    if (s == 0) {
+      for (GLuint done : shaders) glDeleteShader(done);
+      return 0;
+    }
+    shaders.push_back(s);
   }
   const GLuint program = glCreateProgram();
-  glAttachShader(program, vs);
-  glAttachShader(program, fs);
+  for (GLuint s : shaders) glAttachShader(program, s);
   glLinkProgram(program);
-  glDeleteShader(vs);
-  glDeleteShader(fs);
+  for (GLuint s : shaders) glDeleteShader(s);
   GLint ok = 0;
   glGetProgramiv(program, GL_LINK_STATUS, &ok);
   if (!ok) {

@@ -10,8 +10,10 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
+#include <initializer_list>
 #include <memory>
 #include <string>
+#include <utility>
 #include <unordered_map>
 #include <utility>
 #include <vector>
@@ -155,6 +157,8 @@ inline bool may_meet_frustum(const Basis& b, const ObjectDesc& o) {
 
 /// Compiles and links a program of the two shaders; 0 with `error` on failure.
 GLuint link_program(const char* vertex, const char* fragment, std::string* error);
+/// The same for any stages (type, source), a compute shader alone included.
+GLuint link_stages(std::initializer_list<std::pair<GLenum, const char*>> stages, std::string* error);
 
 /// Indices of the unit cube's twelve triangles (renderer.cpp's kTriangles):
 /// every ball, box and query box is drawn as one instance of them (a mesh's

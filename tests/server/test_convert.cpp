@@ -152,6 +152,28 @@ TEST(Convert, CameraChecksNameTheField) {
   bad = c;
   bad.set_far(0.05);
   EXPECT_EQ(camera_from_proto(bad, true, &cam).field, "camera.far");
+  // A region: unset is a point; set fields arrive as sent; bad ones named.
+  EXPECT_TRUE(camera_from_proto(c, true, &cam));
+  EXPECT_FALSE(is_region(cam));
+  v1::Camera region = c;
+  set(region.mutable_eye_extent(), 16, 4, 16);
+  region.set_omnidirectional(true);
+  region.set_horizon_s(0.1);
+  EXPECT_TRUE(camera_from_proto(region, true, &cam));
+  EXPECT_EQ(cam.eye_extent, Vec3(16, 4, 16));
+  EXPECT_TRUE(cam.omnidirectional);
+  EXPECT_EQ(cam.horizon_s, 0.1);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (const Vec3& e : {Vec3(-1, 0, 0), Vec3(0, nan, 0), Vec3(0, 0, 2e12)}) {
+    bad = c;
+    set(bad.mutable_eye_extent(), e.x, e.y, e.z);
+    EXPECT_EQ(camera_from_proto(bad, true, &cam).field, "camera.eye_extent");
+  }
+  for (double h : {-0.5, nan, 1e10, std::numeric_limits<double>::infinity()}) {
+    bad = c;
+    bad.set_horizon_s(h);
+    EXPECT_EQ(camera_from_proto(bad, true, &cam).field, "camera.horizon_s");
+  }
 }
 
 TEST(Convert, MovesChecked) {
