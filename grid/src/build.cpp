@@ -470,9 +470,45 @@ Status build_static_cover(Scene::Impl& s, BuildMeter& meter) {
 Status build_occluders(Scene::Impl& s, BuildMeter& meter, const BuildControl* control) {
   detail::cover_with_boxes(s.res, s.vflags, Scene::Impl::kStaticOpaque, kOpaqueBoxSide, &s.opaque_boxes,
                            &s.opaque_owner);
+  s.static_opaque_boxes = s.opaque_boxes.size();
   if (!meter.charge(s.opaque_boxes.size() * sizeof(detail::VoxBox))) return meter.stopped();
   if (Status st = pair_mesh_triangles(s, meter, control); !st) return st;
   return build_mesh_interiors(s, meter, control);
+}
+
+/// The static convex occluders of region frames (region_occlusion.h): static
+/// boxes and balls, and the boxes of static opaque voxels (buffer on).
+Status build_region_occluders(Scene::Impl& s, BuildMeter& meter) {
+  std::vector<detail::RegionOccluder> occ;
+  for (const detail::Obj& o : s.objs) {
+    if (o.dynamic || o.shape == Shape::Mesh) continue;
+    occ.push_back({o.box_lo(), o.box_hi(), o.shape == Shape::Sphere ? o.radius : 0.0});
+  }
+  const std::size_t most_boxes = std::min(s.static_opaque_boxes, detail::region_box_occluders(s.pyr.cells(1)));
+  // Bounded before anything is made (region_occlusion.h).
+  if (!meter.charge(detail::region_occluder_bytes(occ.size() + most_boxes))) return meter.stopped();
+  // The objects first, then the opaque boxes that no box object holds whole
+  // (a wall's own voxels add nothing to the wall), the largest first, so
+  // many as the estimate allows.
+  auto place = [&](std::vector<detail::RegionOccluder> all) {
+    detail::place_region_occluders(std::move(all), &s.region_occ);
+    detail::fill_region_buckets(&s.region_occ);
+  };
+  place(occ);
+  const GridSpec& spec = s.spec;
+  std::vector<detail::RegionOccluder> boxes;
+  for (std::size_t b = 0; b < s.static_opaque_boxes; ++b) {
+    const detail::VoxBox& vb = s.opaque_boxes[b];
+    const Vec3 lo = spec.bounds_min + Vec3(vb.lo) * spec.voxel_size;
+    const Vec3 hi = spec.bounds_min + Vec3(vb.hi + 1) * spec.voxel_size;
+    if (!s.region_occ.inside_one(lo, hi)) boxes.push_back({lo, hi, 0.0});
+  }
+  auto volume = [](const detail::RegionOccluder& k) { return (k.hi.x - k.lo.x) * (k.hi.y - k.lo.y) * (k.hi.z - k.lo.z); };
+  std::stable_sort(boxes.begin(), boxes.end(), [&](const auto& a, const auto& b) { return volume(a) > volume(b); });
+  if (boxes.size() > most_boxes) boxes.resize(most_boxes);
+  occ.insert(occ.end(), boxes.begin(), boxes.end());
+  place(std::move(occ));
+  return Status::Ok();
 }
 
 /// The cell traversal's summaries (buffer on: only its traversal reads
@@ -541,6 +577,7 @@ Status Scene::create(const SceneDesc& desc, const SceneOptions& options, std::un
     if (Status st = build::build_occluders(s, meter, control); !st) return st;
     if (Status st = build::build_cell_summaries(s, meter); !st) return st;
   }
+  if (Status st = build::build_region_occluders(s, meter); !st) return st;
   if (s.dynamic_count > 0)
     if (Status st = build::build_dynamic(s, meter); !st) return st;
   s.built_bytes = meter.charged();

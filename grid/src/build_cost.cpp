@@ -134,14 +134,17 @@ Status scene_cost(const Scene::Impl& s, const LevelCounts& per_level, std::uint6
   const std::uint64_t boxes = buffer ? s.pyr.cells(1) : 0;
   const std::uint64_t cells = s.cell_base[static_cast<std::size_t>(s.pyr.levels)];
   const std::uint64_t objects = s.objs.size(), dynamic = s.dynamic_count;
+  std::uint64_t convex = 0;  // Static boxes and balls: region occluders, with the opaque boxes.
+  for (const Obj& o : s.objs) convex += !o.dynamic && o.shape != Shape::Mesh ? 1 : 0;
   cost->res = s.res;
   cost->id_entries = entries + dyn_entries;
   // Beyond the grid's layers: the CSR entries (4 each); with the buffer on,
   // the opaque boxes and the per-brick lists (at most the voxels' own
   // entries and one box per brick); per dynamic entry 64 (grid_bytes says
-  // why); the meshes'.
+  // why); the meshes'; the region occluders (region_occlusion.h).
   cost->bytes = grid_bytes(s) + 4 * entries + (buffer ? boxes * (sizeof(VoxBox) + 4) + 4 * per_level[0] : 0) +
-                64 * dyn_entries + mesh.bytes + mesh.own;
+                64 * dyn_entries + mesh.bytes + mesh.own +
+                detail::region_occluder_bytes(convex + (buffer ? detail::region_box_occluders(boxes) : 0));
   // The build's temporaries at their peak: a mark per object and per box
   // (the per-brick lists), or a mesh's.
   cost->build_bytes = std::max<std::uint64_t>(8 * (objects + boxes), mesh.build);

@@ -110,18 +110,46 @@ void put_in_pvs(FrameRun& f, std::uint32_t slot) {
   f.w.pvs.push_back(slot);
 }
 
-/// Phase 2 for a region (region.h): every object and TBV the region can
-/// reach, with no occlusion test (docs/design.md, "Regions").
-void reach_region(FrameRun& f) {
+/// Levels of halving an object's box when no one occluder hides it from a
+/// region (RegionOcclusion::hides): up to 8 pieces.
+constexpr int kRegionSplitLevels = 3;
+
+/// Phase 2 for a region (region.h, region_occlusion.h): every object and
+/// TBV the region can reach, less those static occluders hide from every
+/// eye of the box wherever the object goes within the horizon
+/// (docs/design.md, "Regions").
+void reach_region(FrameRun& f, const Camera& camera) {
   Scene::Impl& s = f.s;
   f.st.region = true;
   f.w.ob.begin(f.wf, 0);
   f.st.ob_width = 0;
+  if (f.w.region_mark.size() < s.region_occ.occ.size()) f.w.region_mark.assign(s.region_occ.occ.size(), 0u);
+  detail::RegionEyes eyes;
+  eyes.lo = camera.eye - camera.eye_extent;
+  eyes.hi = camera.eye + camera.eye_extent;
+  eyes.omnidirectional = camera.omnidirectional;
+  eyes.f = f.wf.f;
+  eyes.near = camera.near;
+  const detail::RegionOcclusion occ(s.region_occ, eyes, f.w.region_mark, f.w.region_stamp);
+  // Hidden wherever the object goes within the horizon (a TBV: from
+  // anywhere in it).
+  auto hidden = [&](const Vec3& lo, const Vec3& hi, double speed) {
+    const Vec3 grow(speed * f.reach.horizon);
+    if (!detail::finite3(grow) || !occ.hides(lo - grow, hi + grow, kRegionSplitLevels)) return false;
+    ++f.st.ob_objects_culled;
+    return true;
+  };
   for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
     const Obj& o = s.objs[slot];
     const double speed = o.dynamic ? o.max_speed : 0.0;
-    if (o.under_tbv && f.reach.may_reach(f.wf, o.tbv_lo, o.tbv_hi, speed)) f.w.deferred.push_back(slot);
-    if (f.reach.may_reach(f.wf, o.box_lo(), o.box_hi(), speed)) put_in_pvs(f, slot);
+    if (o.under_tbv && f.reach.may_reach(f.wf, o.tbv_lo, o.tbv_hi, speed)) {
+      // Every position the object can reach before the TBV expires is
+      // hidden: nothing to reveal, and the object (inside it) is hidden too.
+      if (hidden(o.tbv_lo, o.tbv_hi, speed)) continue;
+      f.w.deferred.push_back(slot);
+    }
+    if (f.reach.may_reach(f.wf, o.box_lo(), o.box_hi(), speed) && !hidden(o.box_lo(), o.box_hi(), speed))
+      put_in_pvs(f, slot);
   }
 }
 
@@ -347,7 +375,7 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
     const std::uint64_t t0 = detail::ticks();
     w.render_ticks = 0;
     if (f.reach.on) {
-      reach_region(f);  // Every object tested: nothing beyond the grid is left.
+      reach_region(f, camera);  // Every object tested: nothing beyond the grid is left.
     } else {
       traverse(f);
     }

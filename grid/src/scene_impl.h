@@ -36,6 +36,7 @@
 #include "mesh_interior.h"
 #include "mesh_pairs.h"
 #include "occlusion_buffer.h"
+#include "region_occlusion.h"
 #include "voxbox.h"
 #include "voxvis/mesh.h"
 #include "voxvis/scene.h"
@@ -257,6 +258,10 @@ struct Scratch::Impl {
   /// Per triangle of the static meshes (Obj::tri_base): frame in which it
   /// was drawn into the occlusion buffer.
   std::vector<std::uint32_t> tri_seen;
+  /// Per region occluder (Scene::Impl::region_occ): the stamp of the last
+  /// test that tried it (region_occlusion.h), and the stamps' counter.
+  std::vector<std::uint32_t> region_mark;
+  std::uint32_t region_stamp = 0;
   /// A dynamic mesh's placed vertices, while its triangles are drawn.
   std::vector<Vec3> placed;
   /// Per cell of levels 1 and up (Scene::Impl::cell_base): frame in which
@@ -335,6 +340,11 @@ struct Scene::Impl {
   /// boxes, and each opaque voxel's owner box (opaque_boxes.h).
   std::vector<detail::VoxBox> opaque_boxes;
   std::vector<std::uint32_t> opaque_owner;
+  /// How many of opaque_boxes cover static opaque voxels (the closed
+  /// meshes' interiors follow them).
+  std::size_t static_opaque_boxes = 0;
+  /// The static convex occluders a region frame uses (region_occlusion.h).
+  detail::RegionOccluders region_occ;
   /// With the occlusion buffer on, per brick: the triangles of static meshes
   /// that meet it (brick b holds brick_tris[brick_tri_offsets[b] ..
   /// brick_tri_offsets[b+1])), drawn when the traversal reaches the brick; a
