@@ -112,7 +112,7 @@ void put_in_pvs(FrameRun& f, std::uint32_t slot) {
 
 /// Levels of halving an object's box when no one occluder hides it from a
 /// region (RegionOcclusion::hides): up to 8 pieces.
-constexpr int kRegionSplitLevels = 3;
+constexpr int kRegionSplitLevels = 4;
 
 /// Phase 2 for a region (region.h, region_occlusion.h): every object and
 /// TBV the region can reach, less those static occluders hide from every

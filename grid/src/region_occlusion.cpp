@@ -114,33 +114,61 @@ void fill_region_buckets(RegionOccluders* out) {
 RegionOcclusion::RegionOcclusion(const RegionOccluders& occ, const RegionEyes& eyes, std::vector<std::uint32_t>& mark,
                                  std::uint32_t& stamp)
     : occ_(occ), eyes_(eyes), mark_(mark), stamp_(stamp) {
-  for (int c = 0; c < 8; ++c)
-    corner_[c] = Vec3((c & 1) ? eyes.hi.x : eyes.lo.x, (c & 2) ? eyes.hi.y : eyes.lo.y, (c & 4) ? eyes.hi.z : eyes.lo.z);
   eye_mag_ = std::max(max_abs(eyes.lo), max_abs(eyes.hi));
   const Vec3 centre = 0.5 * (eyes.lo + eyes.hi), half = 0.5 * (eyes.hi - eyes.lo);
   near_plane_ = glm::dot(eyes.f, centre) + glm::dot(glm::abs(eyes.f), half) + eyes.near;
 }
 
-bool RegionOcclusion::hides(const Vec3& lo, const Vec3& hi, int levels) const {
-  if (occ_.occ.empty() || !finite3(lo) || !finite3(hi)) return false;
-  if (hides_whole(lo, hi)) return true;
-  if (levels <= 0) return false;
+namespace {
+
+/// Splits the box [lo, hi] in two along its longest side.
+void halve(const Vec3& lo, const Vec3& hi, Vec3* h, Vec3* l) {
   const Vec3 extent = hi - lo;
   const int a = extent.x >= extent.y && extent.x >= extent.z ? 0 : (extent.y >= extent.z ? 1 : 2);
-  const double mid = lo[a] + 0.5 * extent[a];
-  Vec3 h = hi, l = lo;
-  h[a] = mid;
-  l[a] = mid;
-  return hides(lo, h, levels - 1) && hides(l, hi, levels - 1);
+  *h = hi;
+  *l = lo;
+  (*h)[a] = (*l)[a] = lo[a] + 0.5 * extent[a];
 }
 
-bool RegionOcclusion::hides_whole(const Vec3& lo, const Vec3& hi) const {
-  Vec3 x[8];
-  for (int c = 0; c < 8; ++c) x[c] = Vec3((c & 1) ? hi.x : lo.x, (c & 2) ? hi.y : lo.y, (c & 4) ? hi.z : lo.z);
+}  // namespace
+
+bool RegionOcclusion::hides(const Vec3& lo, const Vec3& hi, int levels) const {
+  if (occ_.occ.empty() || !finite3(lo) || !finite3(hi)) return false;
+  return hides_from(eyes_.lo, eyes_.hi, lo, hi, levels);
+}
+
+bool RegionOcclusion::hides_from(const Vec3& elo, const Vec3& ehi, const Vec3& lo, const Vec3& hi, int levels) const {
+  bool centre_met = false;
+  if (hides_whole(elo, ehi, lo, hi, &centre_met)) return true;
+  // No occluder even meets the segment between the centres: the middle of
+  // the object shows from the middle of the eyes, and no halving hides it.
+  if (levels <= 0 || !centre_met) return false;
+  // Halve whichever box is the larger: the object's, or the eyes' (a wall
+  // corner hides from each half of the eyes by another wall).
+  const Vec3 ex = hi - lo, ee = ehi - elo;
+  Vec3 h, l;
+  if (std::max(ee.x, std::max(ee.y, ee.z)) > std::max(ex.x, std::max(ex.y, ex.z))) {
+    halve(elo, ehi, &h, &l);
+    return hides_from(elo, h, lo, hi, levels - 1) && hides_from(l, ehi, lo, hi, levels - 1);
+  }
+  halve(lo, hi, &h, &l);
+  return hides_from(elo, ehi, lo, h, levels - 1) && hides_from(elo, ehi, l, hi, levels - 1);
+}
+
+bool RegionOcclusion::hides_whole(const Vec3& elo, const Vec3& ehi, const Vec3& lo, const Vec3& hi,
+                                   bool* centre_met) const {
+  Vec3 x[8], e[8];
+  for (int c = 0; c < 8; ++c) {
+    x[c] = Vec3((c & 1) ? hi.x : lo.x, (c & 2) ? hi.y : lo.y, (c & 4) ? hi.z : lo.z);
+    e[c] = Vec3((c & 1) ? ehi.x : elo.x, (c & 2) ? ehi.y : elo.y, (c & 4) ? ehi.z : elo.z);
+  }
   const double mag = eye_mag_ + std::max(max_abs(lo), max_abs(hi));
   // Every occluder that hides the box meets the segment between the two
   // boxes' centres: the buckets along it, the part within the occluders'.
-  Vec3 a = 0.5 * (eyes_.lo + eyes_.hi), b = 0.5 * (lo + hi);
+  const Vec3 ce = 0.5 * (elo + ehi), cx = 0.5 * (lo + hi);
+  hull_lo_ = glm::min(elo, lo);
+  hull_hi_ = glm::max(ehi, hi);
+  Vec3 a = ce, b = cx;
   const Vec3 bound_hi = occ_.origin + Vec3(occ_.res) * occ_.side;
   if (!clip_segment(&a, &b, occ_.origin, bound_hi)) return false;
   if (++stamp_ == 0) {
@@ -160,13 +188,18 @@ bool RegionOcclusion::hides_whole(const Vec3& lo, const Vec3& hi) const {
       const std::uint32_t id = occ_.ids[i];
       if (mark_[id] == stamp_) continue;
       mark_[id] = stamp_;
-      if (blocks(occ_.occ[id], x, mag)) return true;
+      if (blocks(occ_.occ[id], ce, cx, e, x, mag, centre_met)) return true;
     }
   }
   return false;
 }
 
-bool RegionOcclusion::blocks(const RegionOccluder& k, const Vec3 (&x)[8], double mag) const {
+bool RegionOcclusion::blocks(const RegionOccluder& k, const Vec3& ce, const Vec3& cx, const Vec3 (&e8)[8],
+                             const Vec3 (&x)[8], double mag, bool* centre_met) const {
+  // Within the boxes' hull, or it meets no segment between them.
+  if (k.lo.x > hull_hi_.x || k.lo.y > hull_hi_.y || k.lo.z > hull_hi_.z || k.hi.x < hull_lo_.x ||
+      k.hi.y < hull_lo_.y || k.hi.z < hull_lo_.z)
+    return false;
   const double margin = kRegionMargin * (1.0 + mag + std::max(max_abs(k.lo), max_abs(k.hi)));
   if (eyes_.omnidirectional) {
     // At least near from the eye box along some axis (region_occlusion.h).
@@ -175,30 +208,34 @@ bool RegionOcclusion::blocks(const RegionOccluder& k, const Vec3 (&x)[8], double
       apart = apart || k.lo[a] - eyes_.hi[a] >= eyes_.near + margin || eyes_.lo[a] - k.hi[a] >= eyes_.near + margin;
     if (!apart) return false;
   }
+  // The segments from the centre, then from each eye corner to each corner.
+  auto all_meet = [&](auto meets) {
+    ++tests_;
+    if (!meets(ce, cx)) return false;
+    *centre_met = true;
+    for (const Vec3& e : e8)
+      for (const Vec3& p : x) {
+        ++tests_;
+        if (!meets(e, p)) return false;
+      }
+    return true;
+  };
   if (k.radius > 0.0) {
     const Vec3 c = 0.5 * (k.lo + k.hi);
     const double r = k.radius - margin;
     if (!(r > 0.0)) return false;
     if (!eyes_.omnidirectional && glm::dot(eyes_.f, c) - r < near_plane_ + margin) return false;
-    for (const Vec3& e : corner_)
-      for (const Vec3& p : x) {
-        ++tests_;
-        const Vec3 d = p - e;
-        const double dd = glm::dot(d, d);
-        const double t = dd > 0.0 ? std::clamp(glm::dot(c - e, d) / dd, 0.0, 1.0) : 0.0;
-        const Vec3 q = e + t * d - c;
-        if (glm::dot(q, q) > r * r) return false;
-      }
-    return true;
+    return all_meet([&](const Vec3& e, const Vec3& p) {
+      const Vec3 d = p - e;
+      const double dd = glm::dot(d, d);
+      const double t = dd > 0.0 ? std::clamp(glm::dot(c - e, d) / dd, 0.0, 1.0) : 0.0;
+      const Vec3 q = e + t * d - c;
+      return glm::dot(q, q) <= r * r;
+    });
   }
   const Vec3 lo = k.lo + Vec3(margin), hi = k.hi - Vec3(margin);
   if (lo.x > hi.x || lo.y > hi.y || lo.z > hi.z) return false;
-  for (const Vec3& e : corner_)
-    for (const Vec3& p : x) {
-      ++tests_;
-      if (!segment_meets_box(e, p, lo, hi)) return false;
-    }
-  return true;
+  return all_meet([&](const Vec3& e, const Vec3& p) { return segment_meets_box(e, p, lo, hi); });
 }
 
 bool RegionOcclusion::segment_meets_box(const Vec3& e, const Vec3& x, const Vec3& lo, const Vec3& hi) const {

@@ -103,29 +103,36 @@ class RegionOcclusion {
                   std::uint32_t& stamp);
 
   /// Whether every point of the box [lo, hi] is hidden from every eye of
-  /// the region by static occluders: by one occluder whole, or else its
-  /// halves (along the longest side) each so, to `levels` levels.
+  /// the region by static occluders: by one occluder whole, or else, to
+  /// `levels` levels, the halves (along the longest side) of the larger of
+  /// the two boxes, the object's or the eyes', each so.
   bool hides(const Vec3& lo, const Vec3& hi, int levels) const;
   /// Occluder tests made so far (segments tests, for the counters).
   std::uint64_t tests() const { return tests_; }
 
  private:
-  bool hides_whole(const Vec3& lo, const Vec3& hi) const;
+  bool hides_from(const Vec3& elo, const Vec3& ehi, const Vec3& lo, const Vec3& hi, int levels) const;
+  /// Whether one occluder hides [lo, hi] from every eye of [elo, ehi];
+  /// `centre_met`: set when one meets the segment between the centres.
+  bool hides_whole(const Vec3& elo, const Vec3& ehi, const Vec3& lo, const Vec3& hi, bool* centre_met) const;
   /// Whether occluder k can hide anything from the region (the near rule)
-  /// and, if so, whether all 64 corner segments meet it.
-  bool blocks(const RegionOccluder& k, const Vec3 (&x)[8], double mag) const;
+  /// and, if so, whether the segment between the centres `ce` and `cx`
+  /// (which sets `centre_met`) and all 64 between the eyes' corners `e`
+  /// and the object's `x` meet it.
+  bool blocks(const RegionOccluder& k, const Vec3& ce, const Vec3& cx, const Vec3 (&e)[8], const Vec3 (&x)[8],
+              double mag, bool* centre_met) const;
   /// Whether the segment [e, x] meets the box [lo, hi] cut by the near
   /// half-space (frustum regions).
   bool segment_meets_box(const Vec3& e, const Vec3& x, const Vec3& lo, const Vec3& hi) const;
 
   const RegionOccluders& occ_;
   RegionEyes eyes_;
-  Vec3 corner_[8];
   double eye_mag_ = 0.0;
   double near_plane_ = 0.0;  ///< Frustum regions: f·p must be at least this.
   std::vector<std::uint32_t>& mark_;
   std::uint32_t& stamp_;
   mutable std::uint64_t tests_ = 0;
+  mutable Vec3 hull_lo_{0.0}, hull_hi_{0.0};  ///< The box around both boxes of the current test.
 };
 
 }  // namespace voxvis::detail

@@ -159,6 +159,8 @@ enum class Path { Walkthrough, Indoor, Surface, Cave, City, IndoorMeshes, CityMe
 /// lower bound of the visible set; at 256 x 144 it missed a quarter of the
 /// voxel world's visible blocks (docs/performance.md, "The reference").
 constexpr int kExactCols = 1024, kExactRows = 576, kSampleEvery = 20;
+/// Region rows score every this many frames against the sampled region.
+constexpr std::size_t kRegionSampleEvery = 30;
 /// Rays for the voxels in view (one per cell centre).
 constexpr int kInViewCols = 256, kInViewRows = 144;
 
@@ -351,6 +353,11 @@ void BM_Region(benchmark::State& state, Path which, glm::ivec3 grid, int ob, dou
   double traverse = 0.0, render = 0.0, retest = 0.0, whole = 0.0, movers = 0.0;
   std::vector<double> pvs_at(n, -1.0), voxels_at(n, -1.0);
   std::vector<int> edge_only(n, 0);
+  // Regions: on every kRegionSampleEvery-th frame, the sampled region's
+  // visible set (raycast::region_visible) against the answer: misses, and
+  // the players (dynamic objects) each holds.
+  double region_missed = 0.0, region_seen_players = 0.0, region_pvs_players = 0.0;
+  int region_samples = 0;
   for (auto _ : state) {
     const std::size_t k = ping_pong(step, n);
     if (!run_step()) {
@@ -369,6 +376,20 @@ void BM_Region(benchmark::State& state, Path which, glm::ivec3 grid, int ob, dou
     whole += result.stats.time_us;
     pvs += static_cast<double>(result.pvs.size());
     for (ObjectId id : result.pvs) movers += dynamic_ids.count(id) ? 1.0 : 0.0;
+    if (pvs_at[k] < 0.0 && lookahead > 0.0 && k % kRegionSampleEvery == 0) {
+      raycast::RegionSampling sampling;
+      sampling.random_eyes = 4;
+      sampling.placements = 2;
+      sampling.rays = raycast::RaySampling{24, 24};
+      sampling.seed = k + 1;
+      const Camera cam = with_region(rec.frames[k].camera, lookahead, speed, omni);
+      for (ObjectId id : raycast::region_visible(objects, cam, sampling)) {
+        region_missed += std::binary_search(result.pvs.begin(), result.pvs.end(), id) ? 0.0 : 1.0;
+        region_seen_players += dynamic_ids.count(id) ? 1.0 : 0.0;
+      }
+      for (ObjectId id : result.pvs) region_pvs_players += dynamic_ids.count(id) ? 1.0 : 0.0;
+      ++region_samples;
+    }
     if (pvs_at[k] < 0.0) {
       pvs_at[k] = static_cast<double>(result.pvs.size());
       voxels_at[k] = static_cast<double>(result.stats.voxels_visited);
@@ -388,7 +409,15 @@ void BM_Region(benchmark::State& state, Path which, glm::ivec3 grid, int ob, dou
   state.counters["voxels_mean"] = voxels / frames;
   state.counters["pvs_mean"] = pvs / frames;
   state.counters["dynamic_in_pvs_mean"] = movers / frames;
-  if (lookahead > 0.0) state.counters["region_reach"] = speed * lookahead;
+  if (lookahead > 0.0) {
+    state.counters["region_reach"] = speed * lookahead;
+    state.counters["region_missed"] = region_missed;
+    state.counters["region_samples"] = region_samples;
+    if (region_samples > 0) {
+      state.counters["region_seen_players_mean"] = region_seen_players / region_samples;
+      state.counters["region_pvs_players_mean"] = region_pvs_players / region_samples;
+    }
+  }
   state.counters["traverse_us"] = traverse / frames;
   state.counters["render_us"] = render / frames;
   state.counters["retest_us"] = retest / frames;

@@ -57,7 +57,7 @@ FrameResult region_frame(const SceneDesc& desc, const Camera& cam, SceneOptions 
 }
 
 TEST(Region, RandomScenesAndRegionsMissNothingTheSampledRegionSees) {
-  int checked = 0, wider = 0;
+  int checked = 0, wider = 0, occluded = 0;
   for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(scaled(12)); ++seed) {
     const SceneDesc desc = random_scene(random_scene_params(seed), seed);
     const std::vector<Camera> path = random_camera_path(desc, seed + 300);
@@ -73,6 +73,7 @@ TEST(Region, RandomScenesAndRegionsMissNothingTheSampledRegionSees) {
         const SceneOptions options;
         const FrameResult fr = region_frame(desc, cam, options);
         EXPECT_TRUE(fr.stats.region);
+        occluded += fr.stats.ob_objects_culled > 0 ? 1 : 0;
         raycast::RegionSampling sampling;
         sampling.seed = seed * 1000 + f;
         sampling.rays = raycast::RaySampling{32, 32};
@@ -96,6 +97,8 @@ TEST(Region, RandomScenesAndRegionsMissNothingTheSampledRegionSees) {
   }
   EXPECT_GT(checked, 20);
   EXPECT_GT(wider, checked / 4) << "regions are hardly ever wider than their point";
+  // Static occluders hide something from the region in some frames.
+  EXPECT_GT(occluded, checked / 10) << occluded << " of " << checked;
 }
 
 TEST(Region, AnEyeBoxAcrossAThinWallSeesBothSides) {
