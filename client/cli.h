@@ -96,6 +96,9 @@ struct VerifyArgs {
   EglArgs egl;
   RegionArgs region;              ///< As for replay: set on every frame.
   int region_eyes = 8;            ///< Region frames: random eyes besides the centre and corners.
+  /// Region frames: also checked against the objects where the next K
+  /// frames (within the frame's horizon) put them.
+  int horizon_frames = 0;
   bool quiet = false;
 };
 

@@ -199,6 +199,11 @@ int run(int argc, char** argv) {
                          "corners (0..1000)")
       ->type_name("N")
       ->capture_default_str();
+  verify_cmd->add_option("--horizon-frames", verify.horizon_frames,
+                         "Region frames: frame j's PVS also checked against the objects where frames "
+                         "j+1..j+K put them, while within its horizon_s (0..1000)")
+      ->type_name("K")
+      ->capture_default_str();
   verify_cmd->add_flag("-q,--quiet", verify.quiet, "No progress, miss lines or summary on stderr");
   verify_cmd->footer(
       "Output: one line per frame, {\"frame\", \"visible\", \"missed\", \"pvs_size\", \"stats\"}.\n"

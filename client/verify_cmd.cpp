@@ -8,6 +8,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <deque>
 #include <fstream>
 #include <memory>
 #include <string>
@@ -121,6 +122,37 @@ std::string ms(double v) {
   return buf;
 }
 
+/// A frame checked, its line not yet written: a region frame waits for the
+/// frames of its horizon (--horizon-frames), and every frame after it waits
+/// with it, so that lines stay in order.
+struct Checked {
+  std::int64_t index = 0;
+  int line_no = 0;
+  Camera camera;
+  double t = 0.0;
+  std::vector<ObjectId> pvs, vis, missed, edge_only;
+  render::VisibleStats rs;
+  bool waits = false;  ///< Still takes later frames' objects.
+};
+
+/// Adds to a region frame's check the objects as a later frame placed them
+/// (`objects`): the sampled region at those positions (no further
+/// placement), its sightings and misses merged in.
+void check_later(Checked* c, const std::vector<ObjectDesc>& objects, std::int64_t later, int w, int h, int eyes) {
+  Camera cam = c->camera;
+  cam.horizon_s = 0.0;  // The objects are where they went.
+  raycast::RegionSampling sampling;
+  sampling.random_eyes = eyes;
+  sampling.rays = raycast::pixel_centres(w, h);
+  sampling.seed = static_cast<std::uint64_t>(c->index) * 7919 + static_cast<std::uint64_t>(later) + 1;
+  const std::vector<ObjectId> seen = raycast::region_visible(objects, cam, sampling);
+  std::vector<ObjectId> merged;
+  std::set_union(c->vis.begin(), c->vis.end(), seen.begin(), seen.end(), std::back_inserter(merged));
+  c->vis.swap(merged);
+  c->missed.clear();
+  std::set_difference(c->vis.begin(), c->vis.end(), c->pvs.begin(), c->pvs.end(), std::back_inserter(c->missed));
+}
+
 }  // namespace
 
 int run_verify(const VerifyArgs& args) {
@@ -141,6 +173,9 @@ int run_verify(const VerifyArgs& args) {
   if (args.region_eyes < 0 || args.region_eyes > 1000)
     return report(FormatError{"", 0, "--region-eyes", "must be in [0, 1000], got " + std::to_string(args.region_eyes)});
   if (args.frame_count < -1) return report(FormatError{"", 0, "--frame-count", "must be >= 0"});
+  if (args.horizon_frames < 0 || args.horizon_frames > 1000)
+    return report(FormatError{"", 0, "--horizon-frames",
+                              "must be in [0, 1000], got " + std::to_string(args.horizon_frames)});
 
   std::string text;
   SceneDesc desc;
@@ -208,8 +243,7 @@ int run_verify(const VerifyArgs& args) {
   FrameInput frame;
   FrameResult result;
   FormatError error;
-  std::vector<ObjectId> pvs, vis, missed, edge_only;
-  render::VisibleStats rs;
+  std::vector<ObjectId> pvs;
   std::vector<double> draw_ms, read_ms, query_ms;
   std::uint64_t total_visible = 0, total_pvs = 0, total_missed = 0, frames_missed = 0, total_edge_only = 0,
                 verified = 0;
@@ -218,10 +252,51 @@ int run_verify(const VerifyArgs& args) {
   std::string line, out_line;
   Progress progress(tty, slice);
   bool region_noted = false;
+  std::deque<Checked> window;  // Frames checked, lines not yet written (--horizon-frames).
 
   auto fail = [&](int status) {
     progress.finish();
     return status;
+  };
+  // A checked frame's line, its miss message and its part of the totals.
+  auto write = [&](const Checked& c) -> bool {
+    const render::VisibleStats& rs = c.rs;
+    out_line = "{\"frame\":" + std::to_string(c.index) + ",\"visible\":" + json_ids(c.vis) +
+               ",\"missed\":" + json_ids(c.missed) + ",\"edge_only\":" + json_ids(c.edge_only) +
+               ",\"pvs_size\":" + std::to_string(c.pvs.size()) +
+               ",\"stats\":{\"in_frustum\":" + std::to_string(rs.in_frustum) +
+               ",\"queries\":" + std::to_string(rs.queries) + ",\"upload_ms\":" + ms(rs.upload_ms) +
+               ",\"draw_ms\":" + ms(rs.draw_ms) + ",\"query_ms\":" + ms(rs.query_ms) +
+               ",\"read_ms\":" + ms(rs.read_ms) + "}}\n";
+    if (!out.write(out_line)) return false;
+    if (!c.missed.empty() && !args.quiet) {
+      progress.finish();
+      std::fprintf(stderr, "voxvis: MISS: frame %lld (%s:%d): %zu visible object(s) not in the PVS: %s\n",
+                   static_cast<long long>(c.index), args.frames.c_str(), c.line_no, c.missed.size(),
+                   json_ids(c.missed).c_str());
+    }
+    total_visible += c.vis.size();
+    total_pvs += c.pvs.size();
+    total_missed += c.missed.size();
+    total_edge_only += c.edge_only.size();
+    frames_missed += c.missed.empty() ? 0 : 1;
+    draw_ms.push_back(rs.draw_ms);
+    read_ms.push_back(rs.read_ms);
+    query_ms.push_back(rs.query_ms);
+    ++verified;
+    progress.update(static_cast<std::size_t>(verified));
+    return true;
+  };
+  // Writes the frames at the window's front that wait no more (all: every one).
+  auto flush = [&](bool all) -> bool {
+    while (!window.empty() && (all || !window.front().waits)) {
+      if (!write(window.front())) return false;
+      window.pop_front();
+    }
+    return true;
+  };
+  auto write_error = [&]() {
+    return fail(report(FormatError{out.path(), 0, "", std::string("cannot write: ") + std::strerror(errno)}));
   };
   while (index < end && std::getline(frames, line)) {
     ++line_no;
@@ -260,63 +335,60 @@ int run_verify(const VerifyArgs& args) {
       ++index;
       continue;
     }
+    // Earlier region frames whose horizon holds this frame: checked with
+    // the objects where this frame put them.
+    for (Checked& c : window) {
+      if (!c.waits) continue;
+      if (frame.t - c.t > c.camera.horizon_s) {
+        c.waits = false;
+        continue;
+      }
+      check_later(&c, objects, index, w, h, args.region_eyes);
+      c.waits = index - c.index < args.horizon_frames;
+    }
+    Checked c;
+    c.index = index;
+    c.line_no = line_no;
+    c.camera = frame.camera;
+    c.t = frame.t;
+    c.pvs = pvs;
     if (is_region(frame.camera)) {
       // A region: the ray caster's sampling of it (raycast::region_visible),
       // every sighting a double-precision first hit.
       if (!region_noted && !args.quiet) {
         progress.finish();
+        const std::string later = args.horizon_frames > 0 ? ", and with the objects of the next " +
+                                                                std::to_string(args.horizon_frames) +
+                                                                " frames within its horizon"
+                                                          : "";
         std::fprintf(stderr, "voxvis: region frames are checked by the CPU ray caster's sampling: %dx%d rays "
-                             "a view from the eye box's centre, 8 corners and %d random eyes%s\n",
-                     w, h, args.region_eyes, frame.camera.omnidirectional ? ", six faces each" : "");
+                             "a view from the eye box's centre, 8 corners and %d random eyes%s%s\n",
+                     w, h, args.region_eyes, frame.camera.omnidirectional ? ", six faces each" : "", later.c_str());
         region_noted = true;
       }
       raycast::RegionSampling sampling;
       sampling.random_eyes = args.region_eyes;
       sampling.rays = raycast::pixel_centres(w, h);
       sampling.seed = static_cast<std::uint64_t>(index) + 1;
-      vis = raycast::region_visible(objects, frame.camera, sampling);
-      rs = render::VisibleStats{};
-      missed.clear();
-      edge_only.clear();
-      std::set_difference(vis.begin(), vis.end(), pvs.begin(), pvs.end(), std::back_inserter(missed));
+      c.vis = raycast::region_visible(objects, frame.camera, sampling);
+      std::set_difference(c.vis.begin(), c.vis.end(), c.pvs.begin(), c.pvs.end(), std::back_inserter(c.missed));
+      c.waits = args.horizon_frames > 0 && frame.camera.horizon_s > 0.0;
     } else {
       const bool ok = by_egl ? renderer->visible(objects, frame.camera, render::VisibleOptions{w, h, method},
-                                                 checks_all ? nullptr : &pvs, &vis, &rs, &message)
-                             : raycast_visible(objects, frame.camera, w, h, &vis, &rs, &message);
+                                                 checks_all ? nullptr : &c.pvs, &c.vis, &c.rs, &message)
+                             : raycast_visible(objects, frame.camera, w, h, &c.vis, &c.rs, &message);
       if (!ok) return fail(report(FormatError{args.frames, line_no, "", message}));
       // A miss as report counts one (reference.h): EGL's sightings confirmed
       // in double precision, the edge-only ones dismissed.
       if (!confirm_misses(by_egl ? renderer.get() : nullptr, objects, frame.camera, w, h,
-                          method == render::Method::Ids, vis, pvs, &missed, &edge_only, &message))
+                          method == render::Method::Ids, c.vis, c.pvs, &c.missed, &c.edge_only, &message))
         return fail(report(FormatError{args.frames, line_no, "", message}));
     }
-    out_line = "{\"frame\":" + std::to_string(index) + ",\"visible\":" + json_ids(vis) +
-               ",\"missed\":" + json_ids(missed) + ",\"edge_only\":" + json_ids(edge_only) +
-               ",\"pvs_size\":" + std::to_string(pvs.size()) +
-               ",\"stats\":{\"in_frustum\":" + std::to_string(rs.in_frustum) +
-               ",\"queries\":" + std::to_string(rs.queries) + ",\"upload_ms\":" + ms(rs.upload_ms) +
-               ",\"draw_ms\":" + ms(rs.draw_ms) + ",\"query_ms\":" + ms(rs.query_ms) +
-               ",\"read_ms\":" + ms(rs.read_ms) + "}}\n";
-    if (!out.write(out_line))
-      return fail(report(FormatError{out.path(), 0, "", std::string("cannot write: ") + std::strerror(errno)}));
-    if (!missed.empty() && !args.quiet) {
-      progress.finish();
-      std::fprintf(stderr, "voxvis: MISS: frame %lld (%s:%d): %zu visible object(s) not in the PVS: %s\n",
-                   static_cast<long long>(index), args.frames.c_str(), line_no, missed.size(),
-                   json_ids(missed).c_str());
-    }
-    total_visible += vis.size();
-    total_pvs += pvs.size();
-    total_missed += missed.size();
-    total_edge_only += edge_only.size();
-    frames_missed += missed.empty() ? 0 : 1;
-    draw_ms.push_back(rs.draw_ms);
-    read_ms.push_back(rs.read_ms);
-    query_ms.push_back(rs.query_ms);
-    ++verified;
+    window.push_back(std::move(c));
+    if (!flush(false)) return write_error();
     ++index;
-    progress.update(static_cast<std::size_t>(verified));
   }
+  if (!flush(true)) return write_error();
   if (frames.bad()) return fail(report(FormatError{args.frames, line_no, "", std::string("cannot read: ") + std::strerror(errno)}));
   progress.finish();
   if (args.frame_count > 0 && index < end) {

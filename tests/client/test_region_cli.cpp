@@ -111,6 +111,53 @@ TEST_F(RegionCli, VerifyChecksRegionFramesAndFindsACutPvsMisses) {
   EXPECT_THAT(r.out, HasSubstr("\"missed\":[" + std::to_string(cut) + "]"));
 }
 
+TEST_F(RegionCli, HorizonFramesCheckEachAnswerWhereTheObjectsWent) {
+  // The engine's region answers hold against the objects of the frames
+  // within each one's horizon (50 ms: the next 3 frames at 60 per second).
+  Result r = replay("fields.jsonl", {}, "pvs.jsonl");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::vector<std::string> base = {"verify", "--scene", path("arena.json"), "--frames", path("fields.jsonl"),
+                                         "--resolution", "48x27", "--region-eyes", "2"};
+  auto verify = [&](const std::string& pvs, std::vector<std::string> extra) {
+    std::vector<std::string> args = base;
+    args.insert(args.end(), {"--pvs", path(pvs)});
+    args.insert(args.end(), extra.begin(), extra.end());
+    return run(args);
+  };
+  const Result own = verify("pvs.jsonl", {});
+  ASSERT_EQ(own.status, 0) << own.err;
+  const Result later = verify("pvs.jsonl", {"--horizon-frames", "3"});
+  ASSERT_EQ(later.status, 0) << later.err;
+  EXPECT_THAT(later.err, HasSubstr("with the objects of the next 3 frames within its horizon"));
+  // One line a frame, in order; each frame's visible set is its own and
+  // more (the later frames' sightings).
+  const std::vector<std::string> a = lines_of(own.out), b = lines_of(later.out);
+  ASSERT_EQ(a.size(), b.size());
+  std::size_t grown = 0;
+  std::string own_sets;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    const nlohmann::json ja = nlohmann::json::parse(a[i]), jb = nlohmann::json::parse(b[i]);
+    EXPECT_EQ(jb.at("frame").get<std::size_t>(), i);
+    const auto va = ja.at("visible").get<std::vector<ObjectId>>(), vb = jb.at("visible").get<std::vector<ObjectId>>();
+    EXPECT_TRUE(std::includes(vb.begin(), vb.end(), va.begin(), va.end())) << "frame " << i;
+    grown += vb.size() > va.size() ? 1 : 0;
+    own_sets += nlohmann::json{{"frame", i}, {"pvs", va}}.dump() + "\n";
+  }
+  EXPECT_GT(grown, 0u) << "the later frames never saw more";
+  // A PVS of exactly what each frame's own check sees passes it, and
+  // misses what the later frames see.
+  spit(path("own.jsonl"), own_sets);
+  EXPECT_EQ(verify("own.jsonl", {}).status, 0);
+  r = verify("own.jsonl", {"--horizon-frames", "3"});
+  EXPECT_EQ(r.status, 3) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("MISS"));
+  // The last frames have fewer after them: still one line each.
+  EXPECT_EQ(lines_of(r.out).size(), a.size());
+  r = verify("pvs.jsonl", {"--horizon-frames", "1001"});
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.err, HasSubstr("--horizon-frames: must be in [0, 1000], got 1001"));
+}
+
 TEST_F(RegionCli, BadFlagsAreErrorsNamingThem) {
   struct Case {
     std::vector<std::string> args;
