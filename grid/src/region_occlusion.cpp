@@ -175,6 +175,11 @@ bool RegionOcclusion::hides_whole(const Vec3& elo, const Vec3& ehi, const Vec3& 
     std::fill(mark_.begin(), mark_.end(), 0u);
     stamp_ = 1;
   }
+  // The occluder that hid the last box first: neighbours share walls.
+  if (hint_ < occ_.occ.size()) {
+    mark_[hint_] = stamp_;
+    if (blocks(occ_.occ[hint_], ce, cx, e, x, mag, centre_met)) return true;
+  }
   const double step = 0.5 * occ_.side;
   const int n = std::min(1 + static_cast<int>(std::ceil(glm::length(b - a) / step)), 8 * kRegionBuckets);
   std::size_t last = ~std::size_t{0};
@@ -188,7 +193,10 @@ bool RegionOcclusion::hides_whole(const Vec3& elo, const Vec3& ehi, const Vec3& 
       const std::uint32_t id = occ_.ids[i];
       if (mark_[id] == stamp_) continue;
       mark_[id] = stamp_;
-      if (blocks(occ_.occ[id], ce, cx, e, x, mag, centre_met)) return true;
+      if (blocks(occ_.occ[id], ce, cx, e, x, mag, centre_met)) {
+        hint_ = id;
+        return true;
+      }
     }
   }
   return false;

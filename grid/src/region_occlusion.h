@@ -132,7 +132,8 @@ class RegionOcclusion {
   std::vector<std::uint32_t>& mark_;
   std::uint32_t& stamp_;
   mutable std::uint64_t tests_ = 0;
-  mutable Vec3 hull_lo_{0.0}, hull_hi_{0.0};  ///< The box around both boxes of the current test.
+  mutable Vec3 hull_lo_{0.0}, hull_hi_{0.0};
+  mutable std::uint32_t hint_ = ~0u;  ///< The occluder that last hid a box, tried first.  ///< The box around both boxes of the current test.
 };
 
 }  // namespace voxvis::detail
