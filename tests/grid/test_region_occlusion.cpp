@@ -87,13 +87,14 @@ TEST(RegionOcclusion, AWallHidesFromEveryEyeOfTheBoxAndNotPastItsEdge) {
 }
 
 TEST(RegionOcclusion, TwoWallsHideTogetherWhatNeitherHidesAlone) {
-  // A bar behind two walls at different depths, overlapping a little along
-  // y: neither hides it whole, each hides one half of it (the bar's box is
-  // halved). Buffer off: no opaque voxel box joins them.
+  // A moving bar behind two walls at different depths, overlapping a
+  // little along y: neither hides it whole, each hides one half of it (a
+  // moving object's box is halved; a static one is tested whole). Buffer
+  // off: no opaque voxel box joins them.
   SceneDesc d = unit_grid(100);
   d.objects.push_back(box_between(1, Vec3(40.0, 20.0, 20.0), Vec3(44.0, 52.0, 80.0)));
   d.objects.push_back(box_between(2, Vec3(50.0, 48.0, 20.0), Vec3(54.0, 80.0, 80.0)));
-  d.objects.push_back(box_between(3, Vec3(70.0, 30.0, 48.0), Vec3(72.0, 70.0, 52.0)));
+  d.objects.push_back(dynamic(box_between(3, Vec3(70.0, 30.0, 48.0), Vec3(72.0, 70.0, 52.0)), 1.0));
   const FrameResult fr = checked_frame(d, box_of_eyes(1.0), with_buffer(0));
   EXPECT_FALSE(has(fr.pvs, 3)) << ids(fr.pvs);
   EXPECT_TRUE(has(fr.pvs, 1) && has(fr.pvs, 2)) << ids(fr.pvs);
@@ -102,7 +103,7 @@ TEST(RegionOcclusion, TwoWallsHideTogetherWhatNeitherHidesAlone) {
   SceneDesc corner = unit_grid(100);
   corner.objects.push_back(box_between(1, Vec3(40.0, 20.0, 20.0), Vec3(42.0, 80.0, 80.0)));
   corner.objects.push_back(box_between(2, Vec3(20.0, 20.0, 20.0), Vec3(42.0, 80.0, 22.0)));
-  corner.objects.push_back(sphere(3, Vec3(60.0, 50.0, 5.0), 1.0));
+  corner.objects.push_back(dynamic(sphere(3, Vec3(60.0, 50.0, 5.0), 1.0), 1.0));
   Camera cam = box_of_eyes(2.0);
   cam.eye = Vec3(30.0, 50.0, 35.0);
   const FrameResult fc = checked_frame(corner, cam, with_buffer(0));
