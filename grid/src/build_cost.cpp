@@ -121,7 +121,8 @@ std::uint64_t whole(double x) {
 /// objects counted so far (all: the figure is the scene's; fewer: a lower
 /// bound, and a refusal says so).
 Status scene_cost(const Scene::Impl& s, const LevelCounts& per_level, std::uint64_t dyn_entries,
-                  const BuildMeter& meter, SceneCost* cost, std::size_t counted, const MeshCost& mesh = {}) {
+                  const BuildMeter& meter, SceneCost* cost, std::size_t counted, std::uint64_t convex = 0,
+                  const MeshCost& mesh = {}) {
   const auto nvox = static_cast<std::uint64_t>(s.spec.voxel_count());
   const bool buffer = s.options.occlusion_buffer > 0;
   std::uint64_t entries = 0;
@@ -134,14 +135,13 @@ Status scene_cost(const Scene::Impl& s, const LevelCounts& per_level, std::uint6
   const std::uint64_t boxes = buffer ? s.pyr.cells(1) : 0;
   const std::uint64_t cells = s.cell_base[static_cast<std::size_t>(s.pyr.levels)];
   const std::uint64_t objects = s.objs.size(), dynamic = s.dynamic_count;
-  std::uint64_t convex = 0;  // Static boxes and balls: region occluders, with the opaque boxes.
-  for (const Obj& o : s.objs) convex += !o.dynamic && o.shape != Shape::Mesh ? 1 : 0;
   cost->res = s.res;
   cost->id_entries = entries + dyn_entries;
   // Beyond the grid's layers: the CSR entries (4 each); with the buffer on,
   // the opaque boxes and the per-brick lists (at most the voxels' own
   // entries and one box per brick); per dynamic entry 64 (grid_bytes says
-  // why); the meshes'; the region occluders (region_occlusion.h).
+  // why); the meshes'; the region occluders (region_occlusion.h: the
+  // `convex` static boxes and balls counted, and opaque boxes).
   cost->bytes = grid_bytes(s) + 4 * entries + (buffer ? boxes * (sizeof(VoxBox) + 4) + 4 * per_level[0] : 0) +
                 64 * dyn_entries + mesh.bytes + mesh.own +
                 detail::region_occluder_bytes(convex + (buffer ? detail::region_box_occluders(boxes) : 0));
@@ -282,6 +282,7 @@ Status count_cost(const Scene::Impl& s, BuildMeter& meter, SceneCost* cost, Leve
   MeshCost mesh;
   const bool buffer = s.options.occlusion_buffer > 0;
   std::uint64_t widest = 0;  // Vertices of the largest dynamic mesh.
+  std::uint64_t convex = 0;  // Static boxes and balls (region occluders).
   // The grid alone may be over the limit: refused before any object is looked at.
   if (Status st = scene_cost(s, per_level, 0, meter, cost, 0); !st) return st;
   mesh.own = mesh_bytes(s);
@@ -322,13 +323,15 @@ Status count_cost(const Scene::Impl& s, BuildMeter& meter, SceneCost* cost, Leve
       }
     } else if (!static_cells(s, slot, meter, [&](int l, const glm::ivec3&) { ++per_level[static_cast<std::size_t>(l)]; })) {
       return build_cancelled();
+    } else {
+      ++convex;
     }
     // Stop as soon as the limit is passed: the count costs no more than
     // the budget it is checked against.
-    if (Status st = scene_cost(s, per_level, dyn, meter, cost, slot + 1, mesh); !st) return st;
+    if (Status st = scene_cost(s, per_level, dyn, meter, cost, slot + 1, convex, mesh); !st) return st;
   }
   if (counts) *counts = per_level;
-  return scene_cost(s, per_level, dyn, meter, cost, s.objs.size(), mesh);
+  return scene_cost(s, per_level, dyn, meter, cost, s.objs.size(), convex, mesh);
 }
 
 }  // namespace build
