@@ -511,6 +511,19 @@ Status build_region_occluders(Scene::Impl& s, BuildMeter& meter) {
   return Status::Ok();
 }
 
+/// With dynamic objects: the free space's components (region_cavity.h), so
+/// that a region shut in a room leaves out the movers outside it.
+Status build_free_space(Scene::Impl& s, BuildMeter& meter) {
+  const auto voxels = static_cast<std::uint64_t>(s.spec.voxel_count());
+  if (!meter.charge(detail::free_space_bytes(voxels))) return meter.stopped();
+  if (!meter.charge(4 * voxels)) return meter.stopped();  // The flood's queue, at most a voxel each.
+  const bool done = detail::label_free_space(s.res, s.vflags, Scene::Impl::kStaticOpaque,
+                                             [&] { return meter.tick(static_cast<std::uint64_t>(s.res.x)); },
+                                             &s.free_space);
+  meter.release(4 * voxels);
+  return done ? Status::Ok() : build_cancelled();
+}
+
 /// The cell traversal's summaries (buffer on: only its traversal reads
 /// them): static masks, per-brick lists, per-brick mesh triangles.
 Status build_cell_summaries(Scene::Impl& s, BuildMeter& meter) {
@@ -578,8 +591,10 @@ Status Scene::create(const SceneDesc& desc, const SceneOptions& options, std::un
     if (Status st = build::build_cell_summaries(s, meter); !st) return st;
   }
   if (Status st = build::build_region_occluders(s, meter); !st) return st;
-  if (s.dynamic_count > 0)
+  if (s.dynamic_count > 0) {
+    if (Status st = build::build_free_space(s, meter); !st) return st;
     if (Status st = build::build_dynamic(s, meter); !st) return st;
+  }
   s.built_bytes = meter.charged();
   out->reset(new Scene(std::move(impl)));
   return Status::Ok();

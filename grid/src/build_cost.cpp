@@ -144,18 +144,22 @@ Status scene_cost(const Scene::Impl& s, const LevelCounts& per_level, std::uint6
   // `convex` static boxes and balls counted, and opaque boxes).
   cost->bytes = grid_bytes(s) + 4 * entries + (buffer ? boxes * (sizeof(VoxBox) + 4) + 4 * per_level[0] : 0) +
                 64 * dyn_entries + mesh.bytes + mesh.own +
-                detail::region_occluder_bytes(convex + (buffer ? detail::region_box_occluders(boxes) : 0));
+                detail::region_occluder_bytes(convex + (buffer ? detail::region_box_occluders(boxes) : 0)) +
+                (dynamic > 0 ? detail::free_space_bytes(nvox) : 0);
   // The build's temporaries at their peak: a mark per object and per box
   // (the per-brick lists), or a mesh's.
-  cost->build_bytes = std::max<std::uint64_t>(8 * (objects + boxes), mesh.build);
+  // The free space's flood queue (4 a voxel), with dynamic objects.
+  cost->build_bytes = std::max<std::uint64_t>({8 * (objects + boxes), mesh.build, dynamic > 0 ? 4 * nvox : 0});
   // A worker's scratch: the voxel traversal's stamps (a byte a voxel, the
   // buffer off); per object a PVS mark and a frustum mark (8) and its place
   // in the PVS (4, doubled by the list's growth); per dynamic object its
   // places in the frame's reveals and deferred TBVs (8, doubled); per box
   // and per cell a mark (4); with dynamic objects, per brick the voxels a
   // frame saw (8) and its place in their list (4, doubled), per coarser
-  // cell its place in the cells seen whole (8, doubled).
+  // cell its place in the cells seen whole (8, doubled); per region
+  // occluder a region frame's mark (4).
   cost->scratch_bytes = (buffer ? 0 : nvox) + 16 * objects + 16 * dynamic + 4 * boxes + 4 * cells +
+                        4 * (convex + (buffer ? detail::region_box_occluders(boxes) : 0)) +
                         16 * bricks + 16 * coarse + mesh.scratch;
   cost->work = meter.steps() + nvox * 2;
   const std::uint64_t needed = cost->bytes + cost->build_bytes;

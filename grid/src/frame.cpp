@@ -19,6 +19,8 @@
 #include <mutex>
 #include <shared_mutex>
 
+#include <glm/vector_relational.hpp>
+
 #include "numeric.h"
 #include "region.h"
 #include "traverse.h"
@@ -117,6 +119,28 @@ void put_in_pvs(FrameRun& f, std::uint32_t slot) {
 /// the arena for 7% fewer objects kept, none of them players).
 constexpr int kRegionSplitLevels = 4;
 
+/// The voxels the box [lo, hi] may touch, clipped to the grid; `inside`:
+/// whether the box lies within the grid box, rounding allowed for.
+detail::VoxBox grid_range(const Scene::Impl& s, const Vec3& lo, const Vec3& hi, bool* inside) {
+  const double slop = s.slop(detail::max_abs(lo) + detail::max_abs(hi));
+  const Vec3 glo = s.to_grid(lo) - slop * s.inv_vs, ghi = s.to_grid(hi) + slop * s.inv_vs;
+  *inside = glm::all(glm::greaterThanEqual(glo, Vec3(0.0))) && glm::all(glm::lessThanEqual(ghi, Vec3(s.res)));
+  return s.touch_range(lo, hi, slop);
+}
+
+/// The free space the region's eyes are shut in (region_cavity.h): the eye
+/// box grown by what the near plane may clip (omnidirectional: a cube of
+/// `near` about each eye, a cube face's depth; a frustum: the distance to
+/// its near rectangle's corners).
+detail::RegionCavity eyes_cavity(const Scene::Impl& s, const detail::WorldFrustum& wf, const detail::RegionEyes& eyes) {
+  const double reach = eyes.omnidirectional ? eyes.near
+                                            : eyes.near * std::sqrt(1.0 + wf.tan_x * wf.tan_x + wf.tan_y * wf.tan_y);
+  bool inside = false;
+  detail::VoxBox range;
+  if (std::isfinite(reach)) range = grid_range(s, eyes.lo - Vec3(reach), eyes.hi + Vec3(reach), &inside);
+  return detail::RegionCavity(s.free_space, s.res, range, inside && std::isfinite(reach));
+}
+
 /// Phase 2 for a region (region.h, region_occlusion.h): every object and
 /// TBV the region can reach, less those static occluders hide from every
 /// eye of the box wherever the object goes within the horizon
@@ -134,12 +158,18 @@ void reach_region(FrameRun& f, const Camera& camera) {
   eyes.f = f.wf.f;
   eyes.near = camera.near;
   const detail::RegionOcclusion occ(s.region_occ, eyes, f.w.region_mark, f.w.region_stamp);
+  const detail::RegionCavity cavity = eyes_cavity(s, f.wf, eyes);
   // Hidden wherever the object goes within the horizon (a TBV: from
-  // anywhere in it).
+  // anywhere in it): outside the eyes' free space, or behind a static
+  // occluder.
   auto hidden = [&](const Vec3& lo, const Vec3& hi, double speed) {
     const Vec3 grow(speed * f.reach.horizon);
+    if (!detail::finite3(grow)) return false;
+    const Vec3 glo = lo - grow, ghi = hi + grow;
+    bool inside = false;
+    const bool out_of_space = cavity.on() && cavity.hides(grid_range(s, glo, ghi, &inside), inside);
     const int levels = speed > 0.0 ? kRegionSplitLevels : 0;
-    if (!detail::finite3(grow) || !occ.hides(lo - grow, hi + grow, levels)) return false;
+    if (!out_of_space && !occ.hides(glo, ghi, levels)) return false;
     ++f.st.ob_objects_culled;
     return true;
   };

@@ -81,6 +81,7 @@ std::uint64_t place_region_occluders(std::vector<RegionOccluder> occ, RegionOccl
     out->side = longest > 0.0 && std::isfinite(longest) ? longest / n : 1.0;
     for (int a = 0; a < 3; ++a) out->res[a] = std::clamp(static_cast<int>(std::ceil(extent[a] / out->side)), 1, n);
     const auto buckets = static_cast<std::size_t>(out->res.x) * out->res.y * out->res.z;
+    if (n > 1 && buckets > kRegionBucketsPerOccluder * out->occ.size()) continue;  // Too many: coarser.
     out->offsets.assign(buckets + 1, 0);
     for (const RegionOccluder& k : out->occ) for_buckets(*out, k, [&](std::size_t b) { ++out->offsets[b + 1]; });
     for (std::size_t b = 0; b < buckets; ++b) out->offsets[b + 1] += out->offsets[b];

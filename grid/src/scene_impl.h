@@ -36,6 +36,7 @@
 #include "mesh_interior.h"
 #include "mesh_pairs.h"
 #include "occlusion_buffer.h"
+#include "region_cavity.h"
 #include "region_occlusion.h"
 #include "voxbox.h"
 #include "voxvis/mesh.h"
@@ -345,6 +346,9 @@ struct Scene::Impl {
   std::size_t static_opaque_boxes = 0;
   /// The static convex occluders a region frame uses (region_occlusion.h).
   detail::RegionOccluders region_occ;
+  /// With dynamic objects: the free space's components, for what a region
+  /// frame's eyes are shut in (region_cavity.h).
+  detail::FreeSpace free_space;
   /// With the occlusion buffer on, per brick: the triangles of static meshes
   /// that meet it (brick b holds brick_tris[brick_tri_offsets[b] ..
   /// brick_tri_offsets[b+1])), drawn when the traversal reaches the brick; a

@@ -102,6 +102,9 @@ std::uint64_t scene_footprint(const Scene::Impl& s, std::string* detail = nullpt
   // placed vertices, and once each, the meshes, their quads and interiors.
   f.add("brick_tris", bytes_of(s.brick_tri_offsets) + bytes_of(s.brick_tris));
   f.add("brick_mesh_boxes", bytes_of(s.brick_mesh_boxes));
+  // Regions: the static occluders and their buckets, the free space.
+  f.add("region_occ", bytes_of(s.region_occ.occ) + bytes_of(s.region_occ.offsets) + bytes_of(s.region_occ.ids));
+  f.add("free_space", bytes_of(s.free_space.label) + bytes_of(s.free_space.open) + bytes_of(s.free_space.box));
   std::set<const void*> once;
   std::uint64_t placed = 0, meshes = 0, quads = 0, interiors = 0;
   for (const detail::Obj& o : s.objs) {
@@ -131,6 +134,7 @@ std::uint64_t scratch_footprint(Scratch& scratch, std::string* detail = nullptr)
   f.add("pvs", bytes_of(w.pvs));
   f.add("reveals", bytes_of(w.reveals) + bytes_of(w.deferred));
   f.add("box_seen", bytes_of(w.box_seen));
+  f.add("region_mark", bytes_of(w.region_mark));
   f.add("seen_vox", bytes_of(w.seen_vox));
   f.add("seen_list", bytes_of(w.seen_list));
   f.add("seen_cells", bytes_of(w.seen_cells));
