@@ -515,7 +515,7 @@ Status build_region_occluders(Scene::Impl& s, BuildMeter& meter) {
 /// that a region shut in a room leaves out the movers outside it.
 Status build_free_space(Scene::Impl& s, BuildMeter& meter) {
   const auto voxels = static_cast<std::uint64_t>(s.spec.voxel_count());
-  if (voxels > 0xffffffffu) return Status::Ok();  // The flood's queue holds 32-bit indices: no free space.
+  if (voxels > detail::kMaxFreeSpaceVoxels) return Status::Ok();  // No free space (region_cavity.h).
   if (!meter.charge(detail::free_space_bytes(voxels))) return meter.stopped();
   if (!meter.charge(4 * voxels)) return meter.stopped();  // The flood's queue, at most a voxel each.
   const bool done = detail::label_free_space(s.res, s.vflags, Scene::Impl::kStaticOpaque,

@@ -149,7 +149,8 @@ Status scene_cost(const Scene::Impl& s, const LevelCounts& per_level, std::uint6
   // The build's temporaries at their peak: a mark per object and per box
   // (the per-brick lists), or a mesh's.
   // The free space's flood queue (4 a voxel), with dynamic objects.
-  cost->build_bytes = std::max<std::uint64_t>({8 * (objects + boxes), mesh.build, dynamic > 0 ? 4 * nvox : 0});
+  const bool free_space = dynamic > 0 && detail::free_space_bytes(nvox) > 0;
+  cost->build_bytes = std::max<std::uint64_t>({8 * (objects + boxes), mesh.build, free_space ? 4 * nvox : 0});
   // A worker's scratch: the voxel traversal's stamps (a byte a voxel, the
   // buffer off); per object a PVS mark and a frustum mark (8) and its place
   // in the PVS (4, doubled by the list's growth); per dynamic object its

@@ -40,8 +40,12 @@ struct FreeSpace {
   bool built() const { return !label.empty(); }
 };
 
-/// The bytes the labels of `voxels` voxels keep.
+/// Grids of more voxels get no free space (its labels would cost more than
+/// 4 MiB; the automatic resolution aims at 600,000 voxels).
+inline constexpr std::uint64_t kMaxFreeSpaceVoxels = std::uint64_t{1} << 21;
+/// The bytes the labels of a grid of `voxels` voxels keep (0: none made).
 inline std::uint64_t free_space_bytes(std::uint64_t voxels) {
+  if (voxels > kMaxFreeSpaceVoxels) return 0;
   return 2 * voxels + (1 + sizeof(VoxBox)) * std::min<std::uint64_t>(voxels + 1, kMaxLabel + 1);
 }
 

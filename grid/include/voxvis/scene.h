@@ -50,7 +50,8 @@ struct SceneOptions {
   /// Refuse resolutions above this many voxels (before allocating anything).
   /// The grid costs about 9 bytes a voxel (5 with the occlusion buffer
   /// off, and then 1 more in each worker's Scratch), and about 5 more with
-  /// dynamic objects (2 of them the free space a region's eyes are shut in);
+  /// dynamic objects (2 of them, up to 2^21 voxels, the free space a
+  /// region's eyes are shut in);
   /// SceneCost has the figure of a scene (Scene::estimate).
   std::int64_t max_voxels = std::int64_t{1} << 27;
   /// Per-axis resolution limit.
