@@ -257,7 +257,7 @@ std::uint64_t grid_bytes(const Scene::Impl& s) {
   return nvox * (1 + (buffer ? 4 : 0)) + 4 * offsets + bricks * (sizeof(detail::Brick) + 16) +
          coarse * (sizeof(detail::Brick) + 8) + (bricks > 0 && s.pyr.levels > 2 ? 8 * s.pyr.cells(2) : 0) +
          128 * (bricks + coarse) + 64 * dynamic + (buffer ? 8 * cells + (bricks > 0 ? 12 * cells : 0) : 0) +
-         (buffer ? 8 * (s.pyr.cells(1) + 1) : 0) + objects * (sizeof(Obj) + 48) + (1u << 16);
+         (buffer ? 8 * (s.pyr.cells(1) + 1) : 0) + objects * (sizeof(Obj) + 52) + (1u << 16);
 }
 
 bool interior_level_set(const Scene::Impl& s, const Obj& o, BuildMeter& meter, std::uint64_t* bytes) {

@@ -239,9 +239,13 @@ Status prepare(const SceneDesc& desc, const SceneOptions& options, Scene::Impl& 
                      o.shape == Shape::Mesh;
     }
     s.slot_of.emplace(o.id, static_cast<std::uint32_t>(s.objs.size()));
+    (o.dynamic ? s.dynamic_slots : s.static_slots).push_back(static_cast<std::uint32_t>(s.objs.size()));
+    if (o.dynamic) s.max_dynamic_speed = std::fmax(s.max_dynamic_speed, o.max_speed);
     s.objs.push_back(o);
     if (o.dynamic) ++s.dynamic_count;
   }
+  s.static_slots.shrink_to_fit();  // 4 bytes an object in all (build_cost.cpp).
+  s.dynamic_slots.shrink_to_fit();
   return Status::Ok();
 }
 

@@ -23,6 +23,7 @@
 
 #include "numeric.h"
 #include "region.h"
+#include "region_candidates.h"
 #include "traverse.h"
 #include "voxvis/inspect.h"
 
@@ -144,7 +145,9 @@ detail::RegionCavity eyes_cavity(const Scene::Impl& s, const detail::WorldFrustu
 /// Phase 2 for a region (region.h, region_occlusion.h): every object and
 /// TBV the region can reach, less those static occluders hide from every
 /// eye of the box wherever the object goes within the horizon
-/// (docs/design.md, "Regions").
+/// (docs/design.md, "Regions"). The static objects are tested all; the
+/// dynamic ones and TBVs only where their cells can hold a candidate
+/// (region_candidates.h), so that movers hidden far away cost nothing.
 void reach_region(FrameRun& f, const Camera& camera) {
   Scene::Impl& s = f.s;
   f.st.region = true;
@@ -173,17 +176,36 @@ void reach_region(FrameRun& f, const Camera& camera) {
     ++f.st.ob_objects_culled;
     return true;
   };
-  for (std::uint32_t slot = 0; slot < s.objs.size(); ++slot) {
+  auto test = [&](std::uint32_t slot) {
     const Obj& o = s.objs[slot];
     const double speed = o.dynamic ? o.max_speed : 0.0;
     if (o.under_tbv && f.reach.may_reach(f.wf, o.tbv_lo, o.tbv_hi, speed)) {
       // Every position the object can reach before the TBV expires is
       // hidden: nothing to reveal, and the object (inside it) is hidden too.
-      if (hidden(o.tbv_lo, o.tbv_hi, speed)) continue;
+      if (hidden(o.tbv_lo, o.tbv_hi, speed)) return;
       f.w.deferred.push_back(slot);
     }
     if (f.reach.may_reach(f.wf, o.box_lo(), o.box_hi(), speed) && !hidden(o.box_lo(), o.box_hi(), speed))
       put_in_pvs(f, slot);
+  };
+  for (const std::uint32_t slot : s.static_slots) test(slot);
+  detail::see_region(s, f.w, f.reach, f.wf, cavity);
+  const detail::RegionVisit visit = detail::region_visit(s, f.reach, f.wf, cavity);
+  if (visit.all) {
+    for (const std::uint32_t slot : s.dynamic_slots) test(slot);
+    return;
+  }
+  auto test_once = [&](std::uint32_t slot) {
+    // (The outside list holds static objects too: tested above.)
+    if (!s.objs[slot].dynamic || f.w.obj_seen[slot] == f.w.frame) return;
+    f.w.obj_seen[slot] = f.w.frame;
+    test(slot);
+  };
+  detail::for_each_entry(s, visit.range, test_once);
+  if (visit.outside) {
+    for (const std::uint32_t slot : s.outside_objs) test_once(slot);
+    for (const std::uint32_t slot : s.outside_tbvs) test_once(slot);
+    f.st.outside_tested += static_cast<std::uint32_t>(s.outside_objs.size() + s.outside_tbvs.size());
   }
 }
 
@@ -409,7 +431,7 @@ Status Scene::frame(ViewerId viewer, const Camera& camera, double t, Scratch& sc
     const std::uint64_t t0 = detail::ticks();
     w.render_ticks = 0;
     if (f.reach.on) {
-      reach_region(f, camera);  // Every object tested: nothing beyond the grid is left.
+      reach_region(f, camera);  // Beyond the grid included.
     } else {
       traverse(f);
     }

@@ -73,6 +73,8 @@ class RegionCavity {
   /// Whether the object whose box may touch voxels `range` (clipped to the
   /// grid; `inside`: the box lies within the grid box) is hidden.
   bool hides(const VoxBox& range, bool inside) const;
+  /// The voxel box around the eyes' components (when on()).
+  const VoxBox& box() const { return box_; }
 
  private:
   std::uint16_t at(int x, int y, int z) const {

@@ -219,14 +219,11 @@ bool RegionOcclusion::blocks(const RegionOccluder& k, const Vec3& ce, const Vec3
   }
   // The segments from the centre, then from each eye corner to each corner.
   auto all_meet = [&](auto meets) {
-    ++tests_;
     if (!meets(ce, cx)) return false;
     *centre_met = true;
     for (const Vec3& e : e8)
-      for (const Vec3& p : x) {
-        ++tests_;
+      for (const Vec3& p : x)
         if (!meets(e, p)) return false;
-      }
     return true;
   };
   if (k.radius > 0.0) {

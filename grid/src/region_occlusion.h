@@ -107,8 +107,6 @@ class RegionOcclusion {
   /// `levels` levels, the halves (along the longest side) of the larger of
   /// the two boxes, the object's or the eyes', each so.
   bool hides(const Vec3& lo, const Vec3& hi, int levels) const;
-  /// Occluder tests made so far (segments tests, for the counters).
-  std::uint64_t tests() const { return tests_; }
 
  private:
   bool hides_from(const Vec3& elo, const Vec3& ehi, const Vec3& lo, const Vec3& hi, int levels) const;
@@ -131,9 +129,8 @@ class RegionOcclusion {
   double near_plane_ = 0.0;  ///< Frustum regions: f·p must be at least this.
   std::vector<std::uint32_t>& mark_;
   std::uint32_t& stamp_;
-  mutable std::uint64_t tests_ = 0;
-  mutable Vec3 hull_lo_{0.0}, hull_hi_{0.0};
-  mutable std::uint32_t hint_ = ~0u;  ///< The occluder that last hid a box, tried first.  ///< The box around both boxes of the current test.
+  mutable Vec3 hull_lo_{0.0}, hull_hi_{0.0};  ///< The box around both boxes of the current test.
+  mutable std::uint32_t hint_ = ~0u;          ///< The occluder that last hid a box, tried first.
 };
 
 }  // namespace voxvis::detail

@@ -307,6 +307,11 @@ struct Scene::Impl {
   std::vector<detail::Obj> objs;
   std::unordered_map<ObjectId, std::uint32_t> slot_of;
   std::size_t dynamic_count = 0;
+  /// The slots of the static and of the dynamic objects (a region frame
+  /// tests the static ones all, the dynamic ones through the cells:
+  /// region_candidates.h), and the dynamic objects' fastest max_speed.
+  std::vector<std::uint32_t> static_slots, dynamic_slots;
+  double max_dynamic_speed = 0.0;
 
   // Static layer.
   static constexpr std::uint8_t kStaticOpaque = 1, kStaticIds = 2, kDynOpaque = 4, kCoarseIds = 8;

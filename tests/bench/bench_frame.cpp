@@ -80,7 +80,8 @@
 //     p99_us and tbvs_expired_total/tbvs_created_total show the cost of TBV
 //     expiry waves inside the timed window; revealed_total counts TBVs
 //     revealed in it (hidden objects woken). With /ob:256 the same with the
-//     occlusion buffer at 256 pixels.
+//     occlusion buffer at 256 pixels. hidden_dynamic/region/n:N/ob:256: the
+//     same frames for a region (eyes 4 wide, every direction, 100 ms).
 //
 //   viewers/voxel_world/n:V, viewers/walkthrough[/moves]/n:V
 //     V = 1, 2, 4 viewers of one scene, each on its own thread with its own
@@ -582,8 +583,13 @@ HiddenScene make_hidden_scene(int n) {
   return h;
 }
 
-void BM_HiddenDynamic(benchmark::State& state, int n, int ob) {
-  const HiddenScene h = make_hidden_scene(n);
+void BM_HiddenDynamic(benchmark::State& state, int n, int ob, bool region) {
+  HiddenScene h = make_hidden_scene(n);
+  if (region) {  // Eyes 4 wide, every direction, 100 ms ahead.
+    h.cam.eye_extent = Vec3(2.0);
+    h.cam.omnidirectional = true;
+    h.cam.horizon_s = 0.1;
+  }
   std::unique_ptr<Scene> scene;
   SceneOptions options;
   options.occlusion_buffer = ob;
@@ -1040,10 +1046,16 @@ void register_all() {
     for (int n : {1000, 10000, 100000}) {
       const std::string name = "hidden_dynamic/n:" + std::to_string(n) + suffix(ob);
       // 600 frames: 10 s of scene time at 60 fps.
-      benchmark::RegisterBenchmark(name.c_str(), BM_HiddenDynamic, n, ob)
+      benchmark::RegisterBenchmark(name.c_str(), BM_HiddenDynamic, n, ob, false)
           ->Iterations(600)
           ->Unit(benchmark::kMicrosecond);
     }
+  for (int n : {1000, 10000, 100000}) {
+    const std::string name = "hidden_dynamic/region/n:" + std::to_string(n) + suffix(256);
+    benchmark::RegisterBenchmark(name.c_str(), BM_HiddenDynamic, n, 256, true)
+        ->Iterations(600)
+        ->Unit(benchmark::kMicrosecond);
+  }
 }
 
 }  // namespace

@@ -7,8 +7,9 @@
 # Extra arguments go to bench_frame (Google Benchmark flags). Environment:
 #   BUILD_DIR  build directory (default: <repo>/build)
 #   REPS       --benchmark_repetitions (default 5)
-# Afterwards it prints, when both ran, the hidden_dynamic ratio
-# median_us(n:100000) / median_us(n:1000) (the goal is <= 1.20), and, when
+# Afterwards it prints, when both ran, the hidden_dynamic ratios
+# median_us(n:100000) / median_us(n:1000), point and region frames (the
+# goal is <= 1.20), and, when
 # it ran, the walkthrough's resolution ratio 200x120x200 / 100x60x100
 # (walkthrough/resolution: ratio_of_least; the goal is <= 1.5).
 set -euo pipefail
@@ -50,12 +51,13 @@ for b in data.get("benchmarks", []):
         med[name] = b["median_us"]
     if "ratio_of_least" in b:
         res[name] = b
-for sfx in ("", "/ob:256"):
-    lo, hi = med.get("hidden_dynamic/n:1000" + sfx), med.get("hidden_dynamic/n:100000" + sfx)
+for pre, sfx in (("", ""), ("", "/ob:256"), ("/region", "/ob:256")):
+    lo = med.get("hidden_dynamic" + pre + "/n:1000" + sfx)
+    hi = med.get("hidden_dynamic" + pre + "/n:100000" + sfx)
     if lo and hi:
         ratio = hi / lo
         verdict = "OK" if ratio <= 1.2 else "ABOVE the 1.20 goal"
-        print(f"hidden_dynamic{sfx}: median_us n:1000 = {lo:.1f}, n:100000 = {hi:.1f}, ratio {ratio:.2f} ({verdict})")
+        print(f"hidden_dynamic{pre}{sfx}: median_us n:1000 = {lo:.1f}, n:100000 = {hi:.1f}, ratio {ratio:.2f} ({verdict})")
 for name, b in res.items():
     r = b["ratio_of_least"]
     verdict = "OK" if r <= 1.5 else "ABOVE the 1.5 goal"

@@ -27,22 +27,6 @@ namespace {
 
 bool has(const std::vector<ObjectId>& v, ObjectId id) { return std::binary_search(v.begin(), v.end(), id); }
 
-/// The ids `want` holds and `pvs` lacks.
-std::vector<ObjectId> missing(const std::vector<ObjectId>& want, const std::vector<ObjectId>& pvs) {
-  std::vector<ObjectId> out;
-  std::set_difference(want.begin(), want.end(), pvs.begin(), pvs.end(), std::back_inserter(out));
-  return out;
-}
-
-std::string ids(const std::vector<ObjectId>& v) {
-  std::string s;
-  for (ObjectId id : v) {
-    if (!s.empty()) s += ',';
-    s += std::to_string(id);
-  }
-  return s;
-}
-
 /// One frame of a region camera on a fresh scene at time 0.
 FrameResult region_frame(const SceneDesc& desc, const Camera& cam, SceneOptions options = {}) {
   std::unique_ptr<Scene> scene;
@@ -78,11 +62,11 @@ TEST(Region, RandomScenesAndRegionsMissNothingTheSampledRegionSees) {
         sampling.seed = seed * 1000 + f;
         sampling.rays = raycast::RaySampling{32, 32};
         const std::vector<ObjectId> seen = raycast::region_visible(desc.objects, cam, sampling);
-        const std::vector<ObjectId> lost = missing(seen, fr.pvs);
+        const std::vector<ObjectId> lost = missing_ids(fr.pvs, seen);
         EXPECT_TRUE(lost.empty()) << describe_scene(desc, seed) << " frame " << f << " " << describe(cam)
                                   << " extent " << cam.eye_extent.x << "," << cam.eye_extent.y << ","
                                   << cam.eye_extent.z << " omni " << cam.omnidirectional << " horizon "
-                                  << cam.horizon_s << ": missed " << ids(lost);
+                                  << cam.horizon_s << ": missed " << describe_ids(lost);
         // Wider than the point camera's answer (the point answer keeps
         // objects of voxels the frustum touches, so it need not be a subset).
         Camera point = cam;
@@ -111,9 +95,9 @@ TEST(Region, AnEyeBoxAcrossAThinWallSeesBothSides) {
   Camera cam = camera_along(Vec3(5.0, 20.0, 20.0), Vec3(1.0, 0.0, 0.0), 60.0, 1.0);
   cam.eye_extent = Vec3(0.0, 0.0, 1.0);
   const std::vector<ObjectId> seen = raycast::region_visible(d.objects, cam);
-  EXPECT_TRUE(has(seen, 2) && has(seen, 3)) << ids(seen);
+  EXPECT_TRUE(has(seen, 2) && has(seen, 3)) << describe_ids(seen);
   const FrameResult fr = region_frame(d, cam);
-  EXPECT_TRUE(has(fr.pvs, 2) && has(fr.pvs, 3)) << ids(fr.pvs);
+  EXPECT_TRUE(has(fr.pvs, 2) && has(fr.pvs, 3)) << describe_ids(fr.pvs);
 }
 
 TEST(Region, WhatTheRegionCannotReachIsLeftOut) {
@@ -128,17 +112,17 @@ TEST(Region, WhatTheRegionCannotReachIsLeftOut) {
   Camera cam = camera_along(Vec3(50.0, 50.0, 50.0), Vec3(0.0, 0.0, 1.0), 60.0, 1.0, 0.05, 45.0);
   cam.eye_extent = Vec3(2.0, 2.0, 3.0);
   FrameResult fr = region_frame(d, cam);
-  EXPECT_EQ(fr.pvs, (std::vector<ObjectId>{1, 4})) << ids(fr.pvs);
+  EXPECT_EQ(fr.pvs, (std::vector<ObjectId>{1, 4})) << describe_ids(fr.pvs);
   // Omnidirectional: behind counts too, within far of some eye of the box;
   // far bounds distance, so the diagonal ball (within a cube face's far
   // plane, beyond far) is out, for the engine and the sampled reference.
   cam.omnidirectional = true;
   fr = region_frame(d, cam);
-  EXPECT_EQ(fr.pvs, (std::vector<ObjectId>{1, 2, 4})) << ids(fr.pvs);
+  EXPECT_EQ(fr.pvs, (std::vector<ObjectId>{1, 2, 4})) << describe_ids(fr.pvs);
   const std::vector<ObjectId> sampled = raycast::region_visible(d.objects, cam);
-  EXPECT_FALSE(has(sampled, 5)) << ids(sampled);
-  EXPECT_TRUE(has(sampled, 2)) << ids(sampled);
-  EXPECT_TRUE(missing(sampled, fr.pvs).empty()) << ids(sampled);
+  EXPECT_FALSE(has(sampled, 5)) << describe_ids(sampled);
+  EXPECT_TRUE(has(sampled, 2)) << describe_ids(sampled);
+  EXPECT_TRUE(missing_ids(fr.pvs, sampled).empty()) << describe_ids(sampled);
   // A horizon lets a moving ball come within reach: its near side is 0.5
   // beyond the farthest eye's far plane (z 98); at 1 unit/s, 0.6 s will do,
   // 0.4 s will not.
@@ -146,10 +130,10 @@ TEST(Region, WhatTheRegionCannotReachIsLeftOut) {
   cam.omnidirectional = false;
   cam.horizon_s = 0.4;
   fr = region_frame(d, cam);
-  EXPECT_FALSE(has(fr.pvs, 3)) << ids(fr.pvs);
+  EXPECT_FALSE(has(fr.pvs, 3)) << describe_ids(fr.pvs);
   cam.horizon_s = 0.6;
   fr = region_frame(d, cam);
-  EXPECT_TRUE(has(fr.pvs, 3)) << ids(fr.pvs);
+  EXPECT_TRUE(has(fr.pvs, 3)) << describe_ids(fr.pvs);
 }
 
 TEST(Region, HardCasesAreConservativeAndFinite) {
@@ -183,8 +167,8 @@ TEST(Region, HardCasesAreConservativeAndFinite) {
     const FrameResult fr = region_frame(d, cam);
     raycast::RegionSampling sampling;
     sampling.rays = raycast::RaySampling{24, 24};
-    const std::vector<ObjectId> lost = missing(raycast::region_visible(d.objects, cam, sampling), fr.pvs);
-    EXPECT_TRUE(lost.empty()) << c.name << ": missed " << ids(lost);
+    const std::vector<ObjectId> lost = missing_ids(fr.pvs, raycast::region_visible(d.objects, cam, sampling));
+    EXPECT_TRUE(lost.empty()) << c.name << ": missed " << describe_ids(lost);
     EXPECT_TRUE(std::isfinite(fr.stats.time_us)) << c.name;
   }
   // With a huge box or an unbounded horizon, everything within reach: all.
@@ -223,7 +207,7 @@ TEST(Region, HiddenMoversOutOfReachStayHiddenAtNoCost) {
   EXPECT_GE(fr.stats.tbvs_active, 1u);
   region.omnidirectional = true;
   ASSERT_TRUE(by_region->frame(vr, region, 2.0, scratch, &fr).ok);
-  EXPECT_TRUE(has(fr.wake, 2)) << "the omnidirectional region reaches it: " << ids(fr.wake);
+  EXPECT_TRUE(has(fr.wake, 2)) << "the omnidirectional region reaches it: " << describe_ids(fr.wake);
   EXPECT_TRUE(has(fr.pvs, 2) || fr.stats.tbvs_revealed > 0);
 }
 

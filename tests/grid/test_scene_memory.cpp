@@ -80,6 +80,7 @@ std::uint64_t scene_footprint(const Scene::Impl& s, std::string* detail = nullpt
   Footprint f;
   f.add("objs", bytes_of(s.objs));
   f.add("slot_of", bytes_of_map(s.slot_of));
+  f.add("slots", bytes_of(s.static_slots) + bytes_of(s.dynamic_slots));
   f.add("vflags", bytes_of(s.vflags));
   f.add("static_lists", bytes_of(s.static_lists));
   f.add("static_mask", bytes_of(s.static_mask));
