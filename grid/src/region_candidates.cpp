@@ -58,13 +58,11 @@ VoxBox grown_voxels(const Scene::Impl& s, const VoxBox& c, double g, bool* beyon
   return grown;
 }
 
-/// The voxels (clipped to the grid) a box moving `g` within the horizon
-/// must meet to be kept: the eye box grown by `far` + g (a frustum region
-/// also: the box around the frusta, its eye and far corners grown by the eye
-/// box and g), within the eyes' components' box grown by g when it is
-/// known; `beyond`: whether a box wholly beyond the grid may be kept.
-VoxBox reach_box(const Scene::Impl& s, const RegionReach& reach, const WorldFrustum& wf, const RegionCavity& cavity,
-                 double g, bool* beyond) {
+/// The voxels (clipped to the grid) within reach of the eyes of a box
+/// moving `g` within the horizon: the eye box grown by `far` + g (a frustum
+/// region also: the box around the frusta, its eye and far corners grown by
+/// the eye box and g); `beyond`: whether it reaches out of the grid box.
+VoxBox distance_box(const Scene::Impl& s, const RegionReach& reach, const WorldFrustum& wf, double g, bool* beyond) {
   // (One voxel more: the reach tests' margins are relative, this is not.)
   const Vec3 grow = reach.half + Vec3(reach.far + g) + 1.0 / s.inv_vs;
   VoxBox range = world_range(s, reach.eye - grow, reach.eye + grow, beyond);
@@ -83,12 +81,19 @@ VoxBox reach_box(const Scene::Impl& s, const RegionReach& reach, const WorldFrus
     range = meet(range, world_range(s, lo - gf, hi + gf, &out));
     *beyond = *beyond && out;
   }
-  if (cavity.on()) {
-    bool out = true;
-    range = meet(range, grown_voxels(s, cavity.box(), g, &out));
-    *beyond = *beyond && out;
-  }
   return meet(range, VoxBox{glm::ivec3(0), s.res - 1});
+}
+
+/// `r` shrunk to whole level-2 cells (16 voxels a side), except on the
+/// grid's faces.
+VoxBox whole_cells_in(const Scene::Impl& s, const VoxBox& r) {
+  constexpr int sh = kBrickShift + kCellShift, n = 1 << sh;
+  VoxBox in;
+  for (int a = 0; a < 3; ++a) {
+    in.lo[a] = r.lo[a] == 0 ? 0 : ((r.lo[a] + n - 1) >> sh) << sh;
+    in.hi[a] = r.hi[a] == s.res[a] - 1 ? r.hi[a] : (((r.hi[a] + 1) >> sh) << sh) - 1;
+  }
+  return in;
 }
 
 }  // namespace
@@ -96,8 +101,14 @@ VoxBox reach_box(const Scene::Impl& s, const RegionReach& reach, const WorldFrus
 void see_region(const Scene::Impl& s, Scratch::Impl& w, const RegionReach& reach, const WorldFrustum& wf,
                 const RegionCavity& cavity) {
   if (s.bricks.empty() || w.seen_vox.size() < s.bricks.size()) return;
+  const double g = s.max_dynamic_speed * reach.horizon;
+  // The distance's faces lie in open space, wherever the eyes happen to be:
+  // shrunk to whole cells there (recording less only lets TBVs grow more),
+  // so that only the components' faces, at walls, are recorded voxel by
+  // voxel, in bricks.
   bool beyond = true;
-  const VoxBox range = reach_box(s, reach, wf, cavity, s.max_dynamic_speed * reach.horizon, &beyond);
+  VoxBox range = whole_cells_in(s, distance_box(s, reach, wf, g, &beyond));
+  if (cavity.on()) range = meet(range, grown_voxels(s, cavity.box(), g, &beyond));
   if (range.empty()) return;
   const VoxBox bricks{range.lo >> kBrickShift, range.hi >> kBrickShift};
   // A cell is whole when all its voxels lie in the range (a convex test).
@@ -123,8 +134,14 @@ RegionVisit region_visit(const Scene::Impl& s, const RegionReach& reach, const W
                          const RegionCavity& cavity) {
   RegionVisit v;
   if (s.dynamic_count == 0 || s.bricks.empty()) return v;
+  const double g = s.max_dynamic_speed * reach.horizon;
   bool beyond = true;
-  const VoxBox range = reach_box(s, reach, wf, cavity, s.max_dynamic_speed * reach.horizon, &beyond);
+  VoxBox range = distance_box(s, reach, wf, g, &beyond);
+  if (cavity.on()) {
+    bool out = true;
+    range = meet(range, grown_voxels(s, cavity.box(), g, &out));
+    beyond = beyond && out;
+  }
   if (bricks_in(range) > kBricksPerMover * static_cast<std::int64_t>(s.dynamic_count)) return v;
   v.all = false;
   v.range = range;

@@ -45,10 +45,11 @@ RegionVisit region_visit(const Scene::Impl& s, const RegionReach& reach, const W
                          const RegionCavity& cavity);
 
 /// Records as seen by this frame the voxels of the range region_visit
-/// reads (what a mover must meet to be kept), as whole cells of levels >= 2
-/// and bricks masked to it, so that TBVs made after the frame keep clear of
-/// it (Scene::Impl::tbv_box), as they keep clear of what a point frame saw:
-/// a TBV grown into it would be revealed by the next frame. Scenes with
+/// reads (what a mover must meet to be kept; its faces in open space shrunk
+/// to whole cells of 16 voxels), as whole cells of levels >= 2 and bricks
+/// masked to it, so that TBVs made after the frame keep clear of it
+/// (Scene::Impl::tbv_box), as they keep clear of what a point frame saw: a
+/// TBV grown into it would be revealed by the next frame. Scenes with
 /// dynamic objects only.
 void see_region(const Scene::Impl& s, Scratch::Impl& w, const RegionReach& reach, const WorldFrustum& wf,
                 const RegionCavity& cavity);
