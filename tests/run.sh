@@ -12,7 +12,19 @@ voxvis_ensure_deps tests
 
 jobs=$(nproc 2>/dev/null || echo 2)
 
-echo "== Release build and tests" >&2
+# Each stage's start says how long the run and the stage before took, and
+# the run ends with the whole breakdown (where CI's time goes).
+timings=()
+stage_name="dependencies"
+stage_start=$SECONDS
+stage() {
+  timings+=("$(printf '%6ds  %s' $((SECONDS - stage_start)) "$stage_name")")
+  stage_name="$1"
+  stage_start=$SECONDS
+  echo "== $1 (at ${SECONDS}s)" >&2
+}
+
+stage "Release build and tests"
 cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release
 cmake --build build -j "$jobs"
 ctest --test-dir build --output-on-failure -j "$jobs"
@@ -22,13 +34,13 @@ ctest --test-dir build --output-on-failure -j "$jobs"
 # where podman cannot run). About 9 minutes on a fresh 2-core machine, most
 # of it the image's build stage (its packages, then compiling voxvis): the
 # image CI tests is the one deploy/image.sh ships.
-echo "== Container image and manifests" >&2
+stage "Container image and manifests"
 bash tests/deploy/container_test.sh
 
-echo "== Benchmarks run (one short pass, figures not judged)" >&2
+stage "Benchmarks run (one short pass, figures not judged)"
 build/bench_frame --benchmark_filter='hidden_dynamic/n:1000/' >/dev/null
 
-echo "== AddressSanitizer + UndefinedBehaviorSanitizer build and tests" >&2
+stage "AddressSanitizer + UndefinedBehaviorSanitizer build and tests"
 cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DVOXVIS_SANITIZE=ON \
   -DVOXVIS_BUILD_BENCHMARKS=OFF
 cmake --build build-asan -j "$jobs"
@@ -47,5 +59,7 @@ VOXVIS_TEST_SCALE="${VOXVIS_TEST_SCALE:-1}" \
 # A short pass (VOXVIS_FUZZ_SECONDS per target): the clang build of the engine
 # library and the targets, then every target in turn; any crash, hang, leak
 # or sanitizer report fails the run. tests/fuzz/run_fuzz.sh runs them longer.
-echo "== Fuzz targets of the parsers (clang, libFuzzer + ASan + UBSan)" >&2
+stage "Fuzz targets of the parsers (clang, libFuzzer + ASan + UBSan)"
 bash tests/fuzz/run_fuzz.sh "${VOXVIS_FUZZ_SECONDS:-10}"
+stage "done"
+printf '%s\n' "== Time per stage (seconds):" "${timings[@]}" >&2
