@@ -217,13 +217,17 @@ bool RegionOcclusion::blocks(const RegionOccluder& k, const Vec3& ce, const Vec3
       apart = apart || k.lo[a] - eyes_.hi[a] >= eyes_.near + margin || eyes_.lo[a] - k.hi[a] >= eyes_.near + margin;
     if (!apart) return false;
   }
-  // The segments from the centre, then from each eye corner to each corner.
+  // The segments from the centre, then from each eye corner to each corner:
+  // first those joining corners of the same side (the beam's edges, which
+  // pass an occluder too small first), then the rest.
   auto all_meet = [&](auto meets) {
     if (!meets(ce, cx)) return false;
     *centre_met = true;
-    for (const Vec3& e : e8)
-      for (const Vec3& p : x)
-        if (!meets(e, p)) return false;
+    for (int c = 0; c < 8; ++c)
+      if (!meets(e8[c], x[c])) return false;
+    for (int c = 0; c < 8; ++c)
+      for (int d = 0; d < 8; ++d)
+        if (c != d && !meets(e8[c], x[d])) return false;
     return true;
   };
   if (k.radius > 0.0) {
