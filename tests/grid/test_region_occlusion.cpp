@@ -183,25 +183,21 @@ TEST(RegionOcclusion, HiddenMoversAroundAClosedRoomCostWhatTheyCostAPoint) {
                                        Vec3(50.0 + 40.0 * std::cos(u), 50.0 + 40.0 * std::sin(u), 10.0 + i), 1.0),
                                 1.0));
   }
-  std::unique_ptr<Scene> by_point, by_region;
-  ASSERT_TRUE(Scene::create(d, SceneOptions{}, &by_point).ok);
-  ASSERT_TRUE(Scene::create(d, SceneOptions{}, &by_region).ok);
-  Scratch scratch;
-  const ViewerId vp = by_point->add_viewer(), vr = by_region->add_viewer();
   const Camera point = camera_along(Vec3(50.0), Vec3(1.0, 0.0, 0.0), 60.0, 1.0, 0.05, 500.0);
   Camera region = point;
   region.eye_extent = Vec3(4.0);
   region.omnidirectional = true;
   region.horizon_s = 0.1;
-  FrameResult fp, fr;
-  for (int i = 0; i < 60; ++i) {
-    ASSERT_TRUE(by_point->frame(vp, point, i / 30.0, scratch, &fp).ok);
-    ASSERT_TRUE(by_region->frame(vr, region, i / 30.0, scratch, &fr).ok);
-    if (i == 0) continue;  // The first frame finds every mover without a TBV.
-    EXPECT_EQ(fr.stats.tbvs_revealed, 0u) << "frame " << i;
-    EXPECT_EQ(fr.wake, fp.wake) << "frame " << i;
-    for (ObjectId m : fr.pvs) EXPECT_LT(m, first_mover) << "frame " << i;
-  }
+  FrameResult fr;
+  ASSERT_EQ(frames_side_by_side(d, point, d, region, 60, 30.0,
+                                [&](int i, const FrameResult& fp, const FrameResult& r) {
+                                  fr = r;
+                                  if (i == 0) return;  // The first frame finds every mover without a TBV.
+                                  EXPECT_EQ(r.stats.tbvs_revealed, 0u) << "frame " << i;
+                                  EXPECT_EQ(r.wake, fp.wake) << "frame " << i;
+                                  for (ObjectId m : r.pvs) EXPECT_LT(m, first_mover) << "frame " << i;
+                                }),
+            "");
   EXPECT_EQ(fr.pvs.size(), 6u) << describe_ids(fr.pvs);
   EXPECT_GE(fr.stats.tbvs_active, 40u);
   // The walls alone (no free space: a scene without movers builds none)
@@ -239,23 +235,20 @@ TEST(RegionOcclusion, MoversFarOutsideAClosedRoomAreNeverTested) {
     d.objects.push_back(dynamic(sphere(static_cast<ObjectId>(inside + i), Vec3(35.0 + 7.0 * i, 40.0, 60.0), 1.0), 1.0));
   SceneDesc crowded = d;
   add_far_movers(&crowded, 1000, 7);
-  std::unique_ptr<Scene> few, many;
-  ASSERT_TRUE(Scene::create(d, SceneOptions{}, &few).ok);
-  ASSERT_TRUE(Scene::create(crowded, SceneOptions{}, &many).ok);
-  Scratch scratch;
-  const ViewerId vf = few->add_viewer(), vm = many->add_viewer();
   Camera cam = box_of_eyes(2.0);
   cam.eye = Vec3(50.0);
   cam.horizon_s = 0.1;
-  FrameResult a, b;
-  for (int i = 0; i < 60; ++i) {
-    ASSERT_TRUE(few->frame(vf, cam, i / 30.0, scratch, &a).ok);
-    ASSERT_TRUE(many->frame(vm, cam, i / 30.0, scratch, &b).ok);
-    EXPECT_EQ(b.pvs, a.pvs) << "frame " << i;
-    if (i == 0) continue;  // The first frame finds every mover without a TBV.
-    EXPECT_EQ(b.stats.ob_objects_culled, a.stats.ob_objects_culled) << "frame " << i << ": far movers tested";
-    EXPECT_EQ(b.stats.tbvs_revealed, 0u) << "frame " << i;
-  }
+  FrameResult b;
+  ASSERT_EQ(frames_side_by_side(d, cam, crowded, cam, 60, 30.0,
+                                [&](int i, const FrameResult& a, const FrameResult& r) {
+                                  b = r;
+                                  EXPECT_EQ(r.pvs, a.pvs) << "frame " << i;
+                                  if (i == 0) return;  // The first frame finds every mover without a TBV.
+                                  EXPECT_EQ(r.stats.ob_objects_culled, a.stats.ob_objects_culled)
+                                      << "frame " << i << ": far movers tested";
+                                  EXPECT_EQ(r.stats.tbvs_revealed, 0u) << "frame " << i;
+                                }),
+            "");
   for (int i = 0; i < 5; ++i) EXPECT_TRUE(has(b.pvs, static_cast<ObjectId>(inside + i))) << describe_ids(b.pvs);
   EXPECT_EQ(b.pvs.size(), 11u) << describe_ids(b.pvs);
   EXPECT_GE(b.stats.tbvs_active, 1000u);

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <memory>
 #include <numbers>
 
 #include <glm/geometric.hpp>
@@ -337,6 +338,26 @@ SceneDesc transform_scene(const SceneDesc& scene, double scale, const Vec3& offs
     o.max_speed *= scale;
   }
   return out;
+}
+
+std::string frames_side_by_side(const SceneDesc& a, const Camera& cam_a, const SceneDesc& b, const Camera& cam_b,
+                                int frames, double hz,
+                                const std::function<void(int, const FrameResult&, const FrameResult&)>& check) {
+  std::unique_ptr<Scene> sa, sb;
+  if (const Status st = Scene::create(a, SceneOptions{}, &sa); !st.ok) return "scene a: " + st.str();
+  if (const Status st = Scene::create(b, SceneOptions{}, &sb); !st.ok) return "scene b: " + st.str();
+  Scratch scratch;
+  const ViewerId va = sa->add_viewer(), vb = sb->add_viewer();
+  FrameResult ra, rb;
+  for (int i = 0; i < frames; ++i) {
+    const double t = i / hz;
+    if (const Status st = sa->frame(va, cam_a, t, scratch, &ra); !st.ok)
+      return "scene a, frame " + std::to_string(i) + ": " + st.str();
+    if (const Status st = sb->frame(vb, cam_b, t, scratch, &rb); !st.ok)
+      return "scene b, frame " + std::to_string(i) + ": " + st.str();
+    check(i, ra, rb);
+  }
+  return "";
 }
 
 SceneDesc unit_grid(int n) {

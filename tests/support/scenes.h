@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -104,6 +105,13 @@ class Mover {
   Vec3 hi_;
   Rng rng_;
 };
+
+/// Frames of two scenes side by side (each with its own viewer, one
+/// Scratch), the i-th of both at time i / hz: check(i, a's result, b's)
+/// after each pair. Returns "" or what failed (a build or a frame).
+std::string frames_side_by_side(const SceneDesc& a, const Camera& cam_a, const SceneDesc& b, const Camera& cam_b,
+                                int frames, double hz,
+                                const std::function<void(int, const FrameResult&, const FrameResult&)>& check);
 
 /// An empty scene over [0, n]^3 with n^3 unit voxels.
 SceneDesc unit_grid(int n);
