@@ -189,8 +189,8 @@ void reach_region(FrameRun& f, const Camera& camera) {
       put_in_pvs(f, slot);
   };
   for (const std::uint32_t slot : s.static_slots) test(slot);
-  detail::see_region(s, f.w, f.reach, f.wf, cavity);
   const detail::RegionVisit visit = detail::region_visit(s, f.reach, f.wf, cavity);
+  detail::see_region(s, f.w, visit.seen);
   if (visit.all) {
     for (const std::uint32_t slot : s.dynamic_slots) test(slot);
     return;
@@ -201,7 +201,7 @@ void reach_region(FrameRun& f, const Camera& camera) {
     f.w.obj_seen[slot] = f.w.frame;
     test(slot);
   };
-  detail::for_each_entry(s, visit.range, test_once);
+  f.st.cells_visited = detail::for_each_entry(s, visit.range, test_once);
   if (visit.outside) {
     for (const std::uint32_t slot : s.outside_objs) test_once(slot);
     for (const std::uint32_t slot : s.outside_tbvs) test_once(slot);

@@ -98,18 +98,34 @@ VoxBox whole_cells_in(const Scene::Impl& s, const VoxBox& r) {
 
 }  // namespace
 
-void see_region(const Scene::Impl& s, Scratch::Impl& w, const RegionReach& reach, const WorldFrustum& wf,
-                const RegionCavity& cavity) {
-  if (s.bricks.empty() || w.seen_vox.size() < s.bricks.size()) return;
+RegionVisit region_visit(const Scene::Impl& s, const RegionReach& reach, const WorldFrustum& wf,
+                         const RegionCavity& cavity) {
+  RegionVisit v;
+  if (s.dynamic_count == 0 || s.bricks.empty()) return v;
   const double g = s.max_dynamic_speed * reach.horizon;
-  // The distance's faces lie in open space, wherever the eyes happen to be:
-  // shrunk to whole cells there (recording less only lets TBVs grow more),
-  // so that only the components' faces, at walls, are recorded voxel by
-  // voxel, in bricks.
   bool beyond = true;
-  VoxBox range = whole_cells_in(s, distance_box(s, reach, wf, g, &beyond));
-  if (cavity.on()) range = meet(range, grown_voxels(s, cavity.box(), g, &beyond));
-  if (range.empty()) return;
+  const VoxBox distance = distance_box(s, reach, wf, g, &beyond);
+  VoxBox range = distance;
+  // The distance's faces lie in open space, wherever the eyes happen to be:
+  // the seen record shrinks them to whole cells (recording less only lets
+  // TBVs grow more), so that only the components' faces, at walls, are
+  // recorded voxel by voxel, in bricks.
+  v.seen = whole_cells_in(s, distance);
+  if (cavity.on()) {
+    bool out = true;
+    const VoxBox space = grown_voxels(s, cavity.box(), g, &out);
+    range = meet(range, space);
+    v.seen = meet(v.seen, space);
+    beyond = beyond && out;
+  }
+  v.range = range;
+  v.outside = beyond;
+  v.all = bricks_in(range) > kBricksPerMover * static_cast<std::int64_t>(s.dynamic_count);
+  return v;
+}
+
+void see_region(const Scene::Impl& s, Scratch::Impl& w, const VoxBox& range) {
+  if (s.bricks.empty() || w.seen_vox.size() < s.bricks.size() || range.empty()) return;
   const VoxBox bricks{range.lo >> kBrickShift, range.hi >> kBrickShift};
   // A cell is whole when all its voxels lie in the range (a convex test).
   auto whole = [&](const VoxBox& b) {
@@ -128,25 +144,6 @@ void see_region(const Scene::Impl& s, Scratch::Impl& w, const RegionReach& reach
   };
   decompose(
       s.pyr, 1, bricks, whole, [](const VoxBox&) { return false; }, true, emit, [](std::uint64_t) { return true; });
-}
-
-RegionVisit region_visit(const Scene::Impl& s, const RegionReach& reach, const WorldFrustum& wf,
-                         const RegionCavity& cavity) {
-  RegionVisit v;
-  if (s.dynamic_count == 0 || s.bricks.empty()) return v;
-  const double g = s.max_dynamic_speed * reach.horizon;
-  bool beyond = true;
-  VoxBox range = distance_box(s, reach, wf, g, &beyond);
-  if (cavity.on()) {
-    bool out = true;
-    range = meet(range, grown_voxels(s, cavity.box(), g, &out));
-    beyond = beyond && out;
-  }
-  if (bricks_in(range) > kBricksPerMover * static_cast<std::int64_t>(s.dynamic_count)) return v;
-  v.all = false;
-  v.range = range;
-  v.outside = beyond;
-  return v;
 }
 
 }  // namespace voxvis::detail

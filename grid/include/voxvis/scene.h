@@ -125,7 +125,8 @@ struct FrameStats {
   std::uint64_t ob_pixels_written = 0;///< Pixel bounds occluders raised.
   /// With the buffer on, the traversal of the cell pyramid: cells entered
   /// (their objects tested), and cells skipped whole, hidden by the buffer
-  /// (or beyond its farthest bound, the early end: early_exit).
+  /// (or beyond its farthest bound, the early end: early_exit). A region
+  /// frame: the cells it read for moving objects (0: it read their list).
   std::uint64_t cells_visited = 0;
   std::uint64_t cells_hidden = 0;
   /// Cells of bricks far enough to be taken whole: their bricks entered
