@@ -7,6 +7,15 @@
 #
 #   bash deploy/image.sh                # build (installs podman, runc, debootstrap if missing)
 #   VOXVIS_IMAGE=my/voxvis bash deploy/image.sh
+#   bash deploy/image.sh --binaries build   # the runtime stage around this machine's
+#                                           # Release build of voxvis-server and voxvis
+#
+# --binaries DIR skips the image's build stage (its packages and compiling
+# voxvis: most of the image's time): DIR's voxvis-server and voxvis, built on
+# Debian 12 as deploy/setup.sh builds them, are stripped into deploy/.prebuilt/
+# with the packages they load (deploy/runtime_packages.sh) and the runtime
+# stage is built around them. The test suite's container stage does this with
+# its Release build; without --binaries the image compiles its own, as shipped.
 #
 # Where a registry is reachable, `podman build -f deploy/Containerfile .`
 # (FROM debian:12) works as it is. podman runs with runc and explicit
@@ -14,6 +23,22 @@
 # its default limits may exceed the host's (docs/deploy.md).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+
+binaries=""
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --binaries)
+      [ $# -ge 2 ] || { echo "voxvis image: error: --binaries needs a directory" >&2; exit 2; }
+      binaries="$2"; shift 2 ;;
+    -h|--help) sed -n '2,/^set -euo/p' "$0" | sed '$d; s/^# \{0,1\}//'; exit 0 ;;
+    *) echo "voxvis image: error: unknown argument '$1' (usage: deploy/image.sh [--binaries DIR])" >&2; exit 2 ;;
+  esac
+done
+if [ -n "$binaries" ]; then
+  for b in voxvis-server voxvis; do
+    [ -x "$binaries/$b" ] || { echo "voxvis image: error: --binaries $binaries: no executable $binaries/$b (build it first: cmake --build $binaries)" >&2; exit 2; }
+  done
+fi
 
 image="${VOXVIS_IMAGE:-localhost/voxvis}"
 base="localhost/debian:bookworm"
@@ -48,7 +73,17 @@ else
   trap - EXIT
 fi
 
-say "building $image:$version from deploy/Containerfile (compiles voxvis: several minutes on 2 cores)"
+if [ -n "$binaries" ]; then
+  prebuilt=deploy/.prebuilt
+  rm -rf "$prebuilt" && mkdir -p "$prebuilt"
+  trap 'rm -rf "$prebuilt"' EXIT
+  for b in voxvis-server voxvis; do strip -o "$prebuilt/$b" "$binaries/$b"; done
+  bash deploy/runtime_packages.sh "$prebuilt/voxvis-server" "$prebuilt/voxvis" >"$prebuilt/runtime-packages"
+  build_args+=(--build-arg BINARIES=prebuilt)
+  say "building $image:$version from deploy/Containerfile around $binaries/voxvis-server and $binaries/voxvis"
+else
+  say "building $image:$version from deploy/Containerfile (compiles voxvis: several minutes on 2 cores)"
+fi
 # docker format keeps the HEALTHCHECK (OCI images have no such field);
 # host network: the build's apt-get reaches Debian's archive as this machine does.
 podman "${podman_args[@]}" build --format docker --network host "${build_args[@]}" \

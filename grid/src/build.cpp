@@ -22,6 +22,7 @@
 
 #include "build_parts.h"
 #include "mesh_interior.h"
+#include "mesh_level_set.h"
 #include "mesh_pairs.h"
 #include "numeric.h"
 #include "opaque_boxes.h"
@@ -269,7 +270,7 @@ Status build_mesh_interiors(Scene::Impl& s, BuildMeter& meter, const BuildContro
       return meter.stopped();
   }
   bool any = false;
-  const detail::BuildStop stop{control ? control->cancelled : std::function<bool()>(), {}};
+  const std::function<bool()> cancelled = control ? control->cancelled : std::function<bool()>();
   for (const std::uint32_t slot : meshes) {
     const Obj& o = s.objs[slot];
     std::uint64_t level_set = 0;
@@ -278,7 +279,7 @@ Status build_mesh_interiors(Scene::Impl& s, BuildMeter& meter, const BuildContro
     if (!meter.charge(level_set)) return meter.stopped();
     const GridMesh gm(s, o);
     const VoxBox range = s.touch_range(o.box_lo(), o.box_hi(), s.slop(max_abs(o.center) + max_abs(o.half)));
-    const bool done = detail::inside_voxel_centres(gm.g, *o.mesh, range, stop, [&](int x, int y, int z) {
+    const bool done = detail::level_set_inside(gm.g, *o.mesh, range, cancelled, [&](int x, int y, int z) {
       std::uint8_t& f = s.vflags[static_cast<std::size_t>(s.index(x, y, z))];
       if (!(f & Scene::Impl::kMeshTouched)) {
         f |= Scene::Impl::kMeshInside;

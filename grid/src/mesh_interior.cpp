@@ -1,43 +1,19 @@
 // mesh_interior.cpp — see mesh_interior.h.
 #include "mesh_interior.h"
 
+#include "mesh_level_set.h"
 #include "opaque_boxes.h"
 #include "tri_box.h"
 
-#include <atomic>
 #include <cstdint>
-#include <mutex>
 #include <limits>
 #include <unordered_map>
 
 #include <algorithm>
 #include <cmath>
 
-#include <openvdb/openvdb.h>
-#include <openvdb/tools/MeshToVolume.h>
-#include <openvdb/util/NullInterrupter.h>
-#include <tbb/task_arena.h>
 
 namespace voxvis::detail {
-
-namespace {
-
-/// The mesh in OpenVDB's index space: OpenVDB's voxel (i, j, k) is centred
-/// on the integer point, the grid's voxel (i, j, k) on (i + 1/2, ...), so
-/// points move by a half voxel.
-struct IndexSpaceMesh {
-  const std::vector<Vec3>& g;
-  const Mesh& mesh;
-  std::size_t polygonCount() const { return mesh.triangles.size(); }
-  std::size_t pointCount() const { return g.size(); }
-  std::size_t vertexCount(std::size_t) const { return 3; }
-  void getIndexSpacePoint(std::size_t n, std::size_t v, openvdb::Vec3d& pos) const {
-    const Vec3& p = g[mesh.triangles[n][v]];
-    pos = openvdb::Vec3d(p.x - 0.5, p.y - 0.5, p.z - 0.5);
-  }
-};
-
-}  // namespace
 
 bool mesh_closed(const Mesh& mesh) {
   // Per directed side, how often it is run; a closed mesh runs each side
@@ -55,36 +31,6 @@ bool mesh_closed(const Mesh& mesh) {
 }
 
 namespace {
-
-/// Asks the build's control whether to stop, from OpenVDB's threads.
-struct Interrupter final : openvdb::util::NullInterrupter {
-  const std::function<bool()>* stop;
-  std::atomic<bool> stopped{false};
-  explicit Interrupter(const std::function<bool()>* s) : stop(s) {}
-  bool wasInterrupted(int = -1) override {
-    if (!stopped.load(std::memory_order_relaxed) && stop != nullptr && *stop && (*stop)())
-      stopped.store(true, std::memory_order_relaxed);
-    return stopped.load(std::memory_order_relaxed);
-  }
-};
-
-/// The level set, or null when `stop` said to stop (the conversion's
-/// partial grid is not used). On the calling thread alone: a build runs
-/// beside the frames of the scenes already served, at a lower priority,
-/// and OpenVDB's worker threads would take every core at the normal one.
-openvdb::FloatGrid::Ptr level_set(const std::vector<Vec3>& g, const Mesh& mesh, const std::function<bool()>* stop) {
-  static std::once_flag init;
-  std::call_once(init, [] { openvdb::initialize(); });
-  const IndexSpaceMesh adapter{g, mesh};
-  const openvdb::math::Transform::Ptr xform = openvdb::math::Transform::createLinearTransform(1.0);
-  Interrupter interrupter(stop);
-  openvdb::FloatGrid::Ptr sdf;
-  tbb::task_arena one(1);
-  // A narrow band of three voxels each side (the default): the sign of
-  // every value, inside the band or not, is the region's.
-  one.execute([&] { sdf = openvdb::tools::meshToVolume<openvdb::FloatGrid>(interrupter, adapter, *xform, 3.0f, 3.0f); });
-  return interrupter.stopped.load() ? nullptr : sdf;
-}
 
 /// The layout of model_interior: false when the mesh or h cannot have one.
 bool layout(const Mesh& mesh, double* h, Vec3* lo_out, glm::ivec3* n) {
@@ -130,15 +76,12 @@ bool model_interior(const Mesh& mesh, double h, double grow, const BuildStop& st
     });
     if (stop.tick && !stop.tick(tests + 1)) return false;
   }
-  const openvdb::FloatGrid::Ptr sdf = level_set(g, mesh, &stop.cancelled);
-  if (!sdf) return false;
-  const openvdb::FloatGrid::ConstAccessor acc = sdf->getConstAccessor();
-  for (int z = 0; z < out.n.z; ++z)
-    for (int y = 0; y < out.n.y; ++y)
-      for (int x = 0; x < out.n.x; ++x) {
-        std::uint8_t& f = out.flags[static_cast<std::size_t>(x + out.n.x * (y + static_cast<std::size_t>(out.n.y) * z))];
-        if (!(f & ModelInterior::kTouched) && acc.getValue(openvdb::Coord(x, y, z)) < 0.0f) f |= ModelInterior::kInside;
-      }
+  const VoxBox all{glm::ivec3(0), out.n - 1};
+  const bool done = level_set_inside(g, mesh, all, stop.cancelled, [&](int x, int y, int z) {
+    std::uint8_t& f = out.flags[static_cast<std::size_t>(x + out.n.x * (y + static_cast<std::size_t>(out.n.y) * z))];
+    if (!(f & ModelInterior::kTouched)) f |= ModelInterior::kInside;
+  });
+  if (!done) return false;
   std::vector<VoxBox> boxes;
   std::vector<std::uint32_t> owner;
   cover_with_boxes(out.n, out.flags, ModelInterior::kInside, 16, &boxes, &owner);
@@ -146,19 +89,6 @@ bool model_interior(const Mesh& mesh, double h, double grow, const BuildStop& st
     const Vec3 blo = out.lo + Vec3(b.lo) * h, bhi = out.lo + Vec3(b.hi + 1) * h;
     out.boxes.push_back({0.5 * (blo + bhi), 0.5 * (bhi - blo)});
   }
-  return true;
-}
-
-bool inside_voxel_centres(const std::vector<Vec3>& g, const Mesh& mesh, const VoxBox& range, const BuildStop& stop,
-                          const std::function<void(int, int, int)>& emit) {
-  if (range.empty()) return true;
-  const openvdb::FloatGrid::Ptr sdf = level_set(g, mesh, &stop.cancelled);
-  if (!sdf) return false;
-  const openvdb::FloatGrid::ConstAccessor acc = sdf->getConstAccessor();
-  for (int z = range.lo.z; z <= range.hi.z; ++z)
-    for (int y = range.lo.y; y <= range.hi.y; ++y)
-      for (int x = range.lo.x; x <= range.hi.x; ++x)
-        if (acc.getValue(openvdb::Coord(x, y, z)) < 0.0f) emit(x, y, z);
   return true;
 }
 

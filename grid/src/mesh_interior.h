@@ -4,13 +4,11 @@
 // A mesh is closed when every side is shared by exactly two triangles that
 // run it in opposite directions: its surface then divides space into an
 // unbounded outside and bounded insides. OpenVDB's mesh-to-volume
-// conversion (`openvdb::tools::meshToVolume`, a narrow-band level set whose
-// inactive values carry the sign of the region they lie in, by flood fill)
-// gives the sign at voxel centres; the engine takes as interior only the
-// voxels whose centre it puts inside AND that no triangle touches (the
-// engine's own exact triangle-box test, grown by the rounding allowance),
-// so a voxel lies wholly in one region, the one its centre is in. This is
-// the engine's only use of OpenVDB.
+// conversion (mesh_level_set.h) gives the sign at voxel centres; the engine
+// takes as interior only the voxels whose centre it puts inside AND that no
+// triangle touches (the engine's own exact triangle-box test, grown by the
+// rounding allowance), so a voxel lies wholly in one region, the one its
+// centre is in.
 #pragma once
 
 #include <cstdint>
@@ -35,15 +33,6 @@ struct BuildStop {
   std::function<bool()> cancelled;
   std::function<bool(std::uint64_t)> tick;
 };
-
-/// For a closed mesh whose vertices, placed and mapped, are `g` (grid
-/// coordinates: voxel i spans [i, i+1] along each axis), calls emit(x, y, z)
-/// for every voxel of `range` whose centre OpenVDB's level set of the mesh
-/// (voxel size 1, centres at the grid's voxel centres) puts inside. The
-/// level set is made on the calling thread alone. False, having emitted
-/// nothing, when `stop` stopped it.
-bool inside_voxel_centres(const std::vector<Vec3>& g, const Mesh& mesh, const VoxBox& range, const BuildStop& stop,
-                          const std::function<void(int, int, int)>& emit);
 
 /// A dynamic closed mesh's interior in its own frame (model units), built
 /// once: a grid of cubes of side `h` over the mesh's box grown by a cube,
