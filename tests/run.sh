@@ -31,9 +31,10 @@ ctest --test-dir build --output-on-failure -j "$jobs"
 
 # The container image built and served, and the Kubernetes manifests podman
 # plays (tests/deploy/container_test.sh; it says SKIPPED, with the reason,
-# where podman cannot run). About 9 minutes on a fresh 2-core machine, most
-# of it the image's build stage (its packages, then compiling voxvis): the
-# image CI tests is the one deploy/image.sh ships.
+# where podman cannot run). The image is built around this Release build's
+# binaries (deploy/image.sh --binaries build); its build stage, compiling
+# voxvis as deploy/image.sh ships it (about 9 minutes more), runs when that
+# stage's inputs changed since it last passed (the test says so).
 stage "Container image and manifests"
 bash tests/deploy/container_test.sh
 
