@@ -80,7 +80,7 @@ TEST(Region, RandomScenesAndRegionsMissNothingTheSampledRegionSees) {
       }
     }
   }
-  EXPECT_GT(checked, 20);
+  EXPECT_GT(checked, scaled(20));
   EXPECT_GT(wider, checked / 4) << "regions are hardly ever wider than their point";
   // Static occluders hide something from the region in some frames.
   EXPECT_GT(occluded, checked / 10) << occluded << " of " << checked;
@@ -131,7 +131,7 @@ TEST(Region, ManyMoversAreFoundThroughTheCellsAndNoneIsMissed) {
       ++checked;
     }
   }
-  EXPECT_GT(checked, 10);
+  EXPECT_GT(checked, scaled(10));
   EXPECT_GT(through_cells, checked / 3) << "the cells were read in " << through_cells << " of " << checked;
 }
 
