@@ -128,6 +128,15 @@ void Collector::reveal(std::uint32_t slot) {
   add(slot);
 }
 
+void Collector::reveal_part(std::uint32_t slot, const Vec3& lo, const Vec3& hi) {
+  if (w_.obj_seen[slot] == w_.frame) return;
+  const Obj& o = s_.objs[slot];
+  const Vec3 plo = glm::max(o.tbv_lo, lo), phi = glm::min(o.tbv_hi, hi);
+  // Hidden here says nothing of its other parts: not marked handled.
+  if (w_.ob.on() && glm::all(glm::lessThanEqual(plo, phi)) && w_.ob.hides_world_split(plo, phi, 3)) return;
+  reveal(slot);
+}
+
 void Collector::render_opaque_box_at(std::uint32_t b) {
   if (b == kNoBox || w_.box_seen[b] == w_.frame) return;
   w_.box_seen[b] = w_.frame;

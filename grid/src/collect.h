@@ -79,6 +79,11 @@ class Collector {
   void add(std::uint32_t slot);
   /// A TBV reached (docs/design.md, "Objects revealed during a frame").
   void reveal(std::uint32_t slot);
+  /// A TBV reached through a cell [lo, hi] (world units) that holds its
+  /// entry whole but may hold only part of it (Obj::tbv_coarse): revealed
+  /// unless the buffer hides the part inside the cell. The cells holding
+  /// its entries cover all of it, so each part is tested where it lies.
+  void reveal_part(std::uint32_t slot, const Vec3& lo, const Vec3& hi);
   /// Draws the opaque box owning static opaque voxel `idx`, once a frame.
   void render_opaque_box(std::size_t idx) {
     if (!s_.opaque_owner.empty()) render_opaque_box_at(s_.opaque_owner[idx]);

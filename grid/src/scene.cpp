@@ -363,10 +363,92 @@ void dyn_cells_of(const detail::Pyramid& pyr, const VoxBox& vb, Emit&& emit) {
       [](std::uint64_t) { return true; });
 }
 
+/// The level-2 cells over a range of bricks, when at most 3 a side (a
+/// range that size holds no cell of level 3 whole); else an empty box.
+VoxBox cells2_over(const VoxBox& bricks) {
+  const VoxBox c{bricks.lo >> detail::kCellShift, bricks.hi >> detail::kCellShift};
+  return glm::all(glm::lessThan(c.hi - c.lo, glm::ivec3(3))) ? c : VoxBox{};
+}
+
+/// Calls fn(k, cell, bricks of the range inside it) for each level-2 cell of
+/// `cells` (cells2_over's), k counting x fastest.
+template <class Fn>
+void for_cells2(const detail::Pyramid& pyr, const VoxBox& cells, const VoxBox& bricks, Fn&& fn) {
+  int k = 0;
+  for (int z = cells.lo.z; z <= cells.hi.z; ++z)
+    for (int y = cells.lo.y; y <= cells.hi.y; ++y)
+      for (int x = cells.lo.x; x <= cells.hi.x; ++x, ++k) {
+        const glm::ivec3 c(x, y, z);
+        const VoxBox span = pyr.span(2, c, 1);
+        fn(k, c, span, VoxBox{glm::max(span.lo, bricks.lo), glm::min(span.hi, bricks.hi)});
+      }
+}
+
+/// The cells holding the entries of a TBV over voxels vb (Obj::tbv_coarse):
+/// dyn_cells_of's, but the level-2 cells of `coarse` whole. Over at most 3
+/// level-2 cells a side, dyn_cells_of's are, cell by cell, the cell when
+/// the range covers it and the range's bricks in it otherwise.
+template <class Emit>
+void tbv_cells_of(const detail::Pyramid& pyr, const VoxBox& vb, std::uint32_t coarse, Emit&& emit) {
+  if (coarse == 0 || vb.empty()) {
+    dyn_cells_of(pyr, vb, emit);
+    return;
+  }
+  const VoxBox bricks{vb.lo >> detail::kBrickShift, vb.hi >> detail::kBrickShift};
+  for_cells2(pyr, cells2_over(bricks), bricks, [&](int k, const glm::ivec3& c, const VoxBox& span, const VoxBox& in) {
+    if ((coarse >> k & 1u) || in == span) {
+      emit(2, c);
+      return;
+    }
+    for (int z = in.lo.z; z <= in.hi.z; ++z)
+      for (int y = in.lo.y; y <= in.hi.y; ++y)
+        for (int x = in.lo.x; x <= in.hi.x; ++x) emit(1, glm::ivec3(x, y, z));
+  });
+}
+
+/// Whether tbv_cells_of writes the same cells for (vb, coarse) as for
+/// (old_vb, old_coarse): then a TBV grown within the cells holding it whole
+/// keeps its entries.
+bool same_tbv_cells(const detail::Pyramid& pyr, const VoxBox& old_vb, std::uint32_t old_coarse, const VoxBox& vb,
+                    std::uint32_t coarse) {
+  if (old_coarse == 0 || coarse == 0 || old_vb.empty() || vb.empty()) return false;
+  const VoxBox ob{old_vb.lo >> detail::kBrickShift, old_vb.hi >> detail::kBrickShift};
+  const VoxBox nb{vb.lo >> detail::kBrickShift, vb.hi >> detail::kBrickShift};
+  const VoxBox cells = cells2_over(nb);
+  if (cells != cells2_over(ob)) return false;
+  bool same = true;
+  for_cells2(pyr, cells, nb, [&](int k, const glm::ivec3&, const VoxBox& span, const VoxBox& in) {
+    const VoxBox old_in{glm::max(span.lo, ob.lo), glm::min(span.hi, ob.hi)};
+    const bool whole = (coarse >> k & 1u) || in == span;
+    const bool old_whole = (old_coarse >> k & 1u) || old_in == span;
+    if (whole != old_whole || (!whole && in != old_in)) same = false;
+  });
+  return same;
+}
+
 }  // namespace
 
-void Scene::Impl::brick_add(const VoxBox& vb, std::uint32_t key, std::uint32_t gen) {
-  dyn_cells_of(pyr, vb, [&](int level, const glm::ivec3& c) {
+std::uint32_t Scene::Impl::tbv_coarse_cells(const VoxBox& vb) const {
+  // Only the cell traversal tests a TBV's own box for every entry it reads
+  // (the shell traversal tests entries voxel by voxel), and only a memory
+  // of seen space tells where a cell is not in view.
+  if (vb.empty() || dyn_count[1].empty() || cell_any_seen_at.empty() || !(options.tbv_seen_memory > 0.0)) return 0;
+  const VoxBox range{vb.lo >> detail::kBrickShift, vb.hi >> detail::kBrickShift};
+  const VoxBox cells = cells2_over(range);
+  if (cells.empty()) return 0;
+  // Behind a wall, the usual case, nothing around the range was seen: one
+  // question for all of its cells.
+  const VoxBox around{cells.lo << detail::kCellShift, glm::min(((cells.hi + 1) << detail::kCellShift) - 1, pyr.res[1] - 1)};
+  const bool none_seen = unseen_range(around);
+  std::uint32_t coarse = 0;
+  for_cells2(pyr, cells, range, [&](int k, const glm::ivec3&, const VoxBox& span, const VoxBox& in) {
+    if (in != span && (none_seen || unseen_range(span))) coarse |= std::uint32_t{1} << k;
+  });
+  return coarse;
+}
+
+void Scene::Impl::brick_add(const VoxBox& vb, std::uint32_t key, std::uint32_t gen, std::uint32_t coarse) {
+  tbv_cells_of(pyr, vb, coarse, [&](int level, const glm::ivec3& c) {
     detail::Brick& br = dyn_cell(level, c);
     if (br.entries.size() >= 2 * std::size_t{br.live} + 16) {
       std::erase_if(br.entries, [&](const detail::BrickEntry& e) { return !current(e); });
@@ -378,8 +460,8 @@ void Scene::Impl::brick_add(const VoxBox& vb, std::uint32_t key, std::uint32_t g
   });
 }
 
-void Scene::Impl::brick_remove(const VoxBox& vb) {
-  dyn_cells_of(pyr, vb, [&](int level, const glm::ivec3& c) {
+void Scene::Impl::brick_remove(const VoxBox& vb, std::uint32_t coarse) {
+  tbv_cells_of(pyr, vb, coarse, [&](int level, const glm::ivec3& c) {
     --dyn_cell(level, c).live;
     if (level > 1) --coarse_dyn_live;
     dyn_count_add(level, c, -1);
@@ -668,7 +750,8 @@ void Scene::Impl::make_tbv(std::uint32_t slot, double now, const TbvBox* box) {
   if (std::isfinite(o.tbv_expiry)) expiry.push({o.tbv_expiry, slot, o.tbv_epoch});
   const double s = slop(std::fmax(max_abs(o.tbv_lo), max_abs(o.tbv_hi)));
   o.tbv_voxels = touch_range(o.tbv_lo, o.tbv_hi, s);
-  brick_add(o.tbv_voxels, (slot << 1) | 1u, o.tbv_gen);
+  o.tbv_coarse = tbv_coarse_cells(o.tbv_voxels);
+  brick_add(o.tbv_voxels, (slot << 1) | 1u, o.tbv_gen, o.tbv_coarse);
   // Clamped growth ends on the bounds, so only an object that itself reaches
   // beyond them has a TBV with a part outside the grid.
   if (!box_inside_grid(o.box_lo(), o.box_hi())) list_add(outside_tbvs, o.tbv_outside_pos, slot);
@@ -731,9 +814,15 @@ void Scene::Impl::renew_tbv(std::uint32_t slot, double now) {
   const double s = slop(std::fmax(max_abs(o.tbv_lo), max_abs(o.tbv_hi)));
   o.tbv_voxels = touch_range(o.tbv_lo, o.tbv_hi, s);
   if (bricks_of(o.tbv_voxels) != bricks_of(old_vb)) {
-    brick_remove(old_vb);
-    ++o.tbv_gen;
-    brick_add(o.tbv_voxels, (slot << 1) | 1u, o.tbv_gen);
+    // Grown within the cells holding it whole (the usual case behind a
+    // wall), it keeps its entries.
+    const std::uint32_t coarse = tbv_coarse_cells(o.tbv_voxels);
+    if (!same_tbv_cells(pyr, old_vb, o.tbv_coarse, o.tbv_voxels, coarse)) {
+      brick_remove(old_vb, o.tbv_coarse);
+      ++o.tbv_gen;
+      brick_add(o.tbv_voxels, (slot << 1) | 1u, o.tbv_gen, coarse);
+    }
+    o.tbv_coarse = coarse;
   }
   o.tbv_expiry = expiry_after(now, period);
   ++o.tbv_epoch;
@@ -742,7 +831,7 @@ void Scene::Impl::renew_tbv(std::uint32_t slot, double now) {
 
 void Scene::Impl::drop_tbv(std::uint32_t slot) {
   Obj& o = objs[slot];
-  brick_remove(o.tbv_voxels);
+  brick_remove(o.tbv_voxels, o.tbv_coarse);
   list_remove(outside_tbvs, o.tbv_outside_pos, true);
   o.under_tbv = false;
   ++wake_epoch;

@@ -13,7 +13,8 @@
 //    cuts a brick; built once (paper 4.5). A voxel's objects are its own
 //    list and those of the cells above it.
 //  * bricks, coarse_dyn   per brick (and per coarser cell wholly inside an
-//    object's range of bricks), the dynamic objects and TBVs touching it; an
+//    object's range of bricks, or holding a TBV whole where no viewer looks:
+//    tbv_coarse_cells), the dynamic objects and TBVs touching it; an
 //    entry is (slot << 1 | is_tbv, generation). The exact voxel test happens
 //    when the traversal reaches a voxel, so a move or a TBV costs the cells
 //    it covers (about its surface), not the voxels.
@@ -98,6 +99,9 @@ struct Obj {
   Vec3 tbv_center{0.0};           ///< Centre the TBV was grown around.
   std::int32_t tbv_outside_pos = -1;
   VoxBox tbv_voxels;              ///< Voxels the TBV touches, clipped to the grid.
+  /// The level-2 cells over tbv_voxels holding one entry for the TBV whole
+  /// (Scene::Impl::tbv_coarse_cells); 0: entries as brick_add's.
+  std::uint32_t tbv_coarse = 0;
 
   // A mesh (shape Mesh): its triangles and placement. The engine's centre
   // and half above are a box holding it: for a static mesh its placed
@@ -375,7 +379,8 @@ struct Scene::Impl {
   glm::ivec3 bricks_res{0};
   std::vector<detail::Brick> bricks;
   /// Per level 2 and up, the cells wholly inside an object's or TBV's range
-  /// of bricks (the same entries as a brick's; [0] and [1] unused).
+  /// of bricks, and at level 2 those holding a TBV whole (Obj::tbv_coarse)
+  /// (the same entries as a brick's; [0] and [1] unused).
   std::array<std::vector<detail::Brick>, detail::kMaxLevels> coarse_dyn;
   /// Live entries in coarse_dyn, all levels: readers skip those levels at 0.
   std::uint64_t coarse_dyn_live = 0;
@@ -479,10 +484,18 @@ struct Scene::Impl {
   void discretize(std::uint32_t slot);
   void undiscretize(std::uint32_t slot);
   /// Adds an entry to every brick voxel box vb touches: to the coarsest
-  /// cells wholly inside its range of bricks (cells.h).
-  void brick_add(const detail::VoxBox& vb, std::uint32_t key, std::uint32_t gen);
-  /// Lowers the live count of the same cells brick_add(vb) wrote.
-  void brick_remove(const detail::VoxBox& vb);
+  /// cells wholly inside its range of bricks (cells.h), and, for the
+  /// level-2 cells of `coarse` (tbv_coarse_cells), to the cell whole.
+  void brick_add(const detail::VoxBox& vb, std::uint32_t key, std::uint32_t gen, std::uint32_t coarse = 0);
+  /// Lowers the live count of the same cells brick_add(vb, .., coarse) wrote.
+  void brick_remove(const detail::VoxBox& vb, std::uint32_t coarse = 0);
+  /// The level-2 cells (16 voxels a side) over a TBV's voxels vb that may
+  /// hold its entry whole rather than one per brick it touches: those it
+  /// only partly covers where no viewer saw anything within
+  /// tbv_seen_memory, when its range spans at most 3 of them a side and the
+  /// cell traversal runs (the occlusion buffer on). Bit k: the k-th cell of
+  /// the range, x fastest. docs/design.md, "Where TBVs are stored".
+  std::uint32_t tbv_coarse_cells(const detail::VoxBox& vb) const;
   /// Adds `delta` live entries to cell c of `level` and the counts above it,
   /// flipping the parents' dyn_mask bits where a count leaves or reaches 0.
   void dyn_count_add(int level, glm::ivec3 c, int delta);

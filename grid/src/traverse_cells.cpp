@@ -28,7 +28,10 @@
 // In a cell entered, the objects stored in it are tested one by one
 // (frustum, front neighbours, buffer) and drawn into the buffer when they
 // may be visible (collect.h); in a brick, so are the objects of its voxels,
-// and the opaque boxes owning its opaque voxels are drawn. The buffer only
+// and the opaque boxes owning its opaque voxels are drawn. The TBVs a cell
+// holds are tested last, once its children are drawn; a coarser cell may
+// hold a TBV whole and tests its part in the cell (docs/design.md, "Where
+// TBVs are stored"). The buffer only
 // proves things hidden, in any order (occlusion_buffer.h), so the order
 // affects how much is culled and how early, never whether the answer is
 // conservative.
@@ -74,9 +77,24 @@ class CellTraversal {
   bool skipped(int l, const glm::ivec3& c, bool full, double* zmin);
   /// `zmin`: the cell's least depth along the view direction.
   void visit(int l, const glm::ivec3& c, double zmin);
-  /// Tests and takes the objects, dynamic entries and TBVs stored in cell ci
-  /// of level l.
+  /// Tests and takes the objects and dynamic objects stored in cell ci of
+  /// level l.
   void take_contents(int l, std::size_t ci);
+  /// Tests the TBVs stored in cell ci of level l and reveals those that may
+  /// show: after the cell's own contents and children are drawn.
+  void take_tbvs(int l, const glm::ivec3& c, std::size_t ci);
+  /// Whether the level-2 cell over brick c holds live dynamic entries (TBVs
+  /// held whole there, or objects wholly inside it).
+  bool coarse_tbvs_over(const glm::ivec3& c) const {
+    return has_dyn_ && s_.coarse_dyn_live > 0 && s_.pyr.levels > 2 &&
+           s_.coarse_dyn[2][s_.pyr.index(2, c >> kCellShift)].live > 0;
+  }
+  /// The dynamic entries of cell ci of level l, when it has live ones.
+  const Brick* dyn_cell(int l, std::size_t ci) const {
+    if (!has_dyn_) return nullptr;
+    const Brick& cell = l == 1 ? s_.bricks[ci] : s_.coarse_dyn[static_cast<std::size_t>(l)][ci];
+    return cell.live > 0 ? &cell : nullptr;
+  }
   /// `layers`: record its voxels seen a layer at a time (see_layers), else
   /// whole, unless `record` is false (the caller records it).
   void visit_brick(const glm::ivec3& c, bool layers, bool record = true);
@@ -135,12 +153,18 @@ bool CellTraversal::beyond_buffer(double zmin) {
 
 void CellTraversal::enter(int l, const glm::ivec3& c, bool full) {
   double zmin = 0.0;
-  if (skipped(l, c, full, &zmin)) return;
+  // An empty brick in a cell holding TBVs whole (Scene::Impl::
+  // tbv_coarse_cells) may hold part of one: tested and recorded as a brick
+  // holding something is, so that a wall keeps the space behind it unseen.
+  const bool tbv_part = !full && l == 1 && coarse_tbvs_over(c);
+  if (skipped(l, c, full || tbv_part, &zmin)) return;
   if (!full) {
     if (w_.trace != nullptr) trace(l, c, true);
     // Empty space in view: TBVs made after this frame keep clear of it.
     if (l >= 2) {
       col_.see_cell(l, c);
+    } else if (tbv_part) {
+      see_layers(c, s_.pyr.index(1, c));
     } else {
       col_.see_brick(s_.pyr.index(1, c));
     }
@@ -199,20 +223,34 @@ void CellTraversal::take_contents(int l, std::size_t ci) {
   const IdLists& lists = s_.static_lists[static_cast<std::size_t>(l)];
   if (lists.any())
     for (const std::uint32_t* p = lists.begin(ci); p != lists.end(ci); ++p) col_.add(*p);
-  // Its dynamic objects and TBVs.
-  if (has_dyn_) {
-    const Brick& cell = l == 1 ? s_.bricks[ci] : s_.coarse_dyn[static_cast<std::size_t>(l)][ci];
-    if (cell.live > 0)
-      for (const BrickEntry& e : cell.entries) {
-        if (!s_.current(e)) continue;
-        const std::uint32_t slot = e.key >> 1;
-        const Obj& o = s_.objs[slot];
-        if (!(e.key & 1u)) {
-          col_.add(slot);
-        } else if (wf_.may_intersect_box(o.tbv_lo, o.tbv_hi)) {
-          col_.reveal(slot);
-        }
-      }
+  // Its dynamic objects.
+  if (const Brick* cell = dyn_cell(l, ci))
+    for (const BrickEntry& e : cell->entries)
+      if (!(e.key & 1u) && s_.current(e)) col_.add(e.key >> 1);
+}
+
+void CellTraversal::take_tbvs(int l, const glm::ivec3& c, std::size_t ci) {
+  const Brick* cell = dyn_cell(l, ci);
+  if (cell == nullptr) return;
+  // A coarser cell may hold a TBV's entry whole while holding only part of
+  // it (Scene::Impl::tbv_coarse_cells): its part in the cell is tested.
+  Vec3 lo{0.0}, hi{0.0};
+  if (l >= 2) {
+    const GridSpec& g = s_.spec;
+    const VoxBox b = s_.pyr.span(l, c, 0);
+    lo = g.bounds_min + Vec3(b.lo) * g.voxel_size;
+    hi = g.bounds_min + Vec3(b.hi + 1) * g.voxel_size;
+  }
+  for (const BrickEntry& e : cell->entries) {
+    if (!(e.key & 1u) || !s_.current(e)) continue;
+    const std::uint32_t slot = e.key >> 1;
+    const Obj& o = s_.objs[slot];
+    if (!wf_.may_intersect_box(o.tbv_lo, o.tbv_hi)) continue;
+    if (l >= 2) {
+      col_.reveal_part(slot, lo, hi);
+    } else {
+      col_.reveal(slot);
+    }
   }
 }
 
@@ -223,17 +261,18 @@ void CellTraversal::visit(int l, const glm::ivec3& c, double zmin) {
   if (l == 1) {
     if (w_.trace != nullptr) trace(l, c, true);
     visit_brick(c, has_dyn_);
-    return;
-  }
-  if (l == 2 && zmin > 0.0 && brick_pixels_ < small_pixels_ * zmin) {
+  } else if (l == 2 && zmin > 0.0 && brick_pixels_ < small_pixels_ * zmin) {
     take_whole(c, ci);
-    return;
+  } else {
+    const std::uint64_t held = held_mask(l, ci);
+    for_children(l, c, [&](const glm::ivec3& child, int bit) {
+      const bool full = (held >> bit & 1u) != 0;
+      if (full || has_dyn_) enter(l - 1, child, full);
+    });
   }
-  const std::uint64_t held = held_mask(l, ci);
-  for_children(l, c, [&](const glm::ivec3& child, int bit) {
-    const bool full = (held >> bit & 1u) != 0;
-    if (full || has_dyn_) enter(l - 1, child, full);
-  });
+  // The cell's TBVs last, against everything the cell itself holds that
+  // occludes them (a wall between the eye and a TBV in the same cell).
+  take_tbvs(l, c, ci);
 }
 
 template <class Fn>
@@ -333,6 +372,7 @@ void CellTraversal::take_whole(const glm::ivec3& c, std::size_t ci) {
     ++st_.cells_visited;
     take_contents(1, bi);
     visit_brick(b, false, false);
+    take_tbvs(1, b, bi);
   });
   // The trace counts the cell visited whole, less its bricks proven hidden
   // (or missing the frustum), as the seen record below does.
