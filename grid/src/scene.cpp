@@ -428,7 +428,14 @@ bool same_tbv_cells(const detail::Pyramid& pyr, const VoxBox& old_vb, std::uint3
 
 }  // namespace
 
-std::uint32_t Scene::Impl::tbv_coarse_cells(const VoxBox& vb) const {
+bool Scene::Impl::unseen_around(const VoxBox& vb) const {
+  if (vb.empty() || cell_any_seen_at.empty()) return false;
+  const VoxBox cells{vb.lo >> (detail::kBrickShift + detail::kCellShift), vb.hi >> (detail::kBrickShift + detail::kCellShift)};
+  return unseen_range(VoxBox{cells.lo << detail::kCellShift,
+                             glm::min(((cells.hi + 1) << detail::kCellShift) - 1, pyr.res[1] - 1)});
+}
+
+std::uint32_t Scene::Impl::tbv_coarse_cells(const VoxBox& vb, bool quiet) const {
   // Only the cell traversal tests a TBV's own box for every entry it reads
   // (the shell traversal tests entries voxel by voxel), and only a memory
   // of seen space tells where a cell is not in view.
@@ -438,8 +445,7 @@ std::uint32_t Scene::Impl::tbv_coarse_cells(const VoxBox& vb) const {
   if (cells.empty()) return 0;
   // Behind a wall, the usual case, nothing around the range was seen: one
   // question for all of its cells.
-  const VoxBox around{cells.lo << detail::kCellShift, glm::min(((cells.hi + 1) << detail::kCellShift) - 1, pyr.res[1] - 1)};
-  const bool none_seen = unseen_range(around);
+  const bool none_seen = quiet || unseen_around(vb);
   std::uint32_t coarse = 0;
   for_cells2(pyr, cells, range, [&](int k, const glm::ivec3&, const VoxBox& span, const VoxBox& in) {
     if (in != span && (none_seen || unseen_range(span))) coarse |= std::uint32_t{1} << k;
@@ -567,7 +573,11 @@ double Scene::Impl::max_period(const Obj& o) const {
 }
 
 double Scene::Impl::tbv_box(std::uint32_t slot, Vec3* lo_out, Vec3* hi_out, bool* cut) const {
-  if (cut) *cut = false;
+  const double period = full_tbv_box(slot, lo_out, hi_out);
+  return cut_tbv_box(slot, period, lo_out, hi_out, cut);
+}
+
+double Scene::Impl::full_tbv_box(std::uint32_t slot, Vec3* lo_out, Vec3* hi_out) const {
   const Obj& o = objs[slot];
   // Every centre reachable before expiry is within max_speed * period of the
   // current one, so the object's box grown by that much bounds it (Sudarsky &
@@ -589,6 +599,14 @@ double Scene::Impl::tbv_box(std::uint32_t slot, Vec3* lo_out, Vec3* hi_out, bool
   const Vec3 lo = o.box_lo(), hi = o.box_hi();
   *lo_out = glm::min(lo, glm::max(lo - grow, spec.bounds_min));
   *hi_out = glm::max(hi, glm::min(hi + grow, spec.bounds_max));
+  return period;
+}
+
+double Scene::Impl::cut_tbv_box(std::uint32_t slot, double period, Vec3* lo_out, Vec3* hi_out, bool* cut) const {
+  if (cut) *cut = false;
+  const Obj& o = objs[slot];
+  const double grow = o.max_speed * period;
+  const Vec3 lo = o.box_lo(), hi = o.box_hi();
   // Nor into space a viewer saw recently: a TBV there would be revealed at
   // once, waking an object that cannot be seen where it is. The growth (and
   // with it the period) is cut to what keeps clear of the seen voxels, so the
@@ -775,8 +793,15 @@ void Scene::Impl::renew_tbv(std::uint32_t slot, double now) {
   // it: the old one may reach into space seen since it was made, which
   // would reveal it.
   Vec3 lo, hi;
+  double period = full_tbv_box(slot, &lo, &hi);
+  // Behind a wall, the usual case, nothing around the union of old and new
+  // was seen within the memory: no cut to look for, and each cell around it
+  // may hold it whole. One question of the seen record for both.
+  const Vec3 ulo = glm::min(o.tbv_lo, lo), uhi = glm::max(o.tbv_hi, hi);
+  const VoxBox uvb = touch_range(ulo, uhi, slop(std::fmax(max_abs(ulo), max_abs(uhi))));
+  const bool quiet = unseen_around(uvb);
   bool cut = false;
-  const double period = tbv_box(slot, &lo, &hi, &cut);
+  if (!quiet) period = cut_tbv_box(slot, period, &lo, &hi, &cut);
   // Entries are written per range of bricks (its coarsest cells), so a
   // range that did not change writes nothing, and one that changed is
   // written anew: the old entries go stale (a new generation), about the
@@ -809,14 +834,14 @@ void Scene::Impl::renew_tbv(std::uint32_t slot, double now) {
     expiry.push({o.tbv_expiry, slot, o.tbv_epoch});
     return;
   }
-  o.tbv_lo = glm::min(o.tbv_lo, lo);
-  o.tbv_hi = glm::max(o.tbv_hi, hi);
-  const double s = slop(std::fmax(max_abs(o.tbv_lo), max_abs(o.tbv_hi)));
-  o.tbv_voxels = touch_range(o.tbv_lo, o.tbv_hi, s);
+  // Not cut: lo and hi are still the whole growth, and the union is uvb's.
+  o.tbv_lo = ulo;
+  o.tbv_hi = uhi;
+  o.tbv_voxels = uvb;
   if (bricks_of(o.tbv_voxels) != bricks_of(old_vb)) {
     // Grown within the cells holding it whole (the usual case behind a
     // wall), it keeps its entries.
-    const std::uint32_t coarse = tbv_coarse_cells(o.tbv_voxels);
+    const std::uint32_t coarse = tbv_coarse_cells(o.tbv_voxels, quiet);
     if (!same_tbv_cells(pyr, old_vb, o.tbv_coarse, o.tbv_voxels, coarse)) {
       brick_remove(old_vb, o.tbv_coarse);
       ++o.tbv_gen;

@@ -495,7 +495,11 @@ struct Scene::Impl {
   /// tbv_seen_memory, when its range spans at most 3 of them a side and the
   /// cell traversal runs (the occlusion buffer on). Bit k: the k-th cell of
   /// the range, x fastest. docs/design.md, "Where TBVs are stored".
-  std::uint32_t tbv_coarse_cells(const detail::VoxBox& vb) const;
+  /// `quiet`: unseen_around(vb) is known to hold.
+  std::uint32_t tbv_coarse_cells(const detail::VoxBox& vb, bool quiet = false) const;
+  /// unseen_range over the level-2 cells (16 voxels a side) around voxels
+  /// vb: nothing in them was seen within tbv_seen_memory.
+  bool unseen_around(const detail::VoxBox& vb) const;
   /// Adds `delta` live entries to cell c of `level` and the counts above it,
   /// flipping the parents' dyn_mask bits where a count leaves or reaches 0.
   void dyn_count_add(int level, glm::ivec3 c, int delta);
@@ -523,6 +527,11 @@ struct Scene::Impl {
   /// returns the (jittered) period. `cut` (if given) says whether seen space
   /// cut the growth short.
   double tbv_box(std::uint32_t slot, Vec3* lo, Vec3* hi, bool* cut = nullptr) const;
+  /// tbv_box's two steps: the box grown by the whole (jittered) period,
+  /// which it returns, and that box cut by seen space (returns the period
+  /// left).
+  double full_tbv_box(std::uint32_t slot, Vec3* lo, Vec3* hi) const;
+  double cut_tbv_box(std::uint32_t slot, double period, Vec3* lo, Vec3* hi, bool* cut) const;
   void drop_tbv(std::uint32_t slot);
   /// How far (world units, on every side) the box of object `o` may grow
   /// towards the TBV box [lo, hi] and stay half a voxel clear of every voxel
