@@ -595,12 +595,13 @@ int run(int argc, char** argv) {
   // --tbv-period, when given: 0 (adaptive) or at least a millisecond.
   const auto take_tbv = [](const CLI::Option* opt, double value, voxvis::cli::EngineArgs* engine) {
     if (opt->count() == 0) return true;
-    if (!std::isfinite(value) || !(value == 0.0 || value >= 1e-3)) return false;
+    if (!std::isfinite(value) || !(value == 0.0 || value >= voxvis::kMinTbvPeriod)) return false;
     engine->tbv_period = value;
     return true;
   };
   const voxvis::FormatError bad_tbv{"", 0, "--tbv-period",
-                                    "must be 0 (adaptive) or a finite number of seconds >= 0.001"};
+                                    "must be 0 (adaptive) or a finite number of seconds >= " +
+                                        voxvis::number_text(voxvis::kMinTbvPeriod)};
   if (replay_cmd->parsed()) {
     if (!take_tbv(tbv_opt, tbv_period, &replay.engine)) return voxvis::cli::report(bad_tbv);
     return voxvis::cli::run_replay(replay);

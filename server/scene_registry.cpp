@@ -1,13 +1,13 @@
 #include "scene_registry.h"
 
 #include <algorithm>
-#include <cstdlib>
 #include <set>
 #include <stdexcept>
 #include <utility>
 
 #include "calls.h"
 #include "convert.h"
+#include "env.h"
 #include "voxvis/format.h"
 #include "voxvis/mesh.h"
 
@@ -16,12 +16,6 @@ namespace {
 
 std::string mib(std::uint64_t bytes) {
   return std::to_string((bytes + (1u << 20) - 1) >> 20) + " MiB";
-}
-
-/// An environment variable's value; empty when unset.
-std::string env_text(const char* name) {
-  const char* v = std::getenv(name);
-  return v ? v : "";
 }
 
 }  // namespace

@@ -1,7 +1,6 @@
 #include "service.h"
 
 #include <chrono>
-#include <cstdlib>
 #include <exception>
 #include <memory>
 #include <mutex>
@@ -11,6 +10,7 @@
 
 #include "calls.h"
 #include "convert.h"
+#include "env.h"
 #include "frame_answer.h"
 #include "streams.h"
 
@@ -18,12 +18,6 @@ namespace voxvis::server {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-/// An environment variable's value; empty when unset.
-std::string env_text(const char* name) {
-  const char* v = std::getenv(name);
-  return v ? v : "";
-}
 
 /// Starts a raw unary call: checks the token's role, takes a place among the
 /// calls in progress and parses the request. Null after answering the call

@@ -10,7 +10,6 @@
 #include <atomic>
 #include <cerrno>
 #include <cmath>
-#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <limits>
@@ -33,13 +32,6 @@ constexpr std::string_view kTempPrefix = ".tmp-";
 constexpr const char* kSymlinkReason = "a symbolic link (never followed in the data directory)";
 
 std::string errno_text(int err) { return std::strerror(err); }
-
-/// A number as the messages write it: 1e+10, 0.5.
-std::string number_text(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", v);
-  return buf;
-}
 
 std::string scenes_dir(const std::string& dir) { return (fs::path(dir) / "scenes").string(); }
 std::string quarantine_dir(const std::string& dir) { return (fs::path(dir) / "quarantine").string(); }

@@ -66,7 +66,8 @@ Status validate_desc(const SceneDesc& d, const SceneOptions& opt) {
                                        std::to_string(opt.max_voxels));
   }
   if (!(opt.tbv_period == 0.0 || opt.tbv_period >= kMinTbvPeriod) || !std::isfinite(opt.tbv_period))
-    return Status::Error("tbv_period", "must be 0 (per object) or a finite number of seconds >= 0.001");
+    return Status::Error("tbv_period",
+                         "must be 0 (per object) or a finite number of seconds >= " + number_text(kMinTbvPeriod));
   if (!(opt.tbv_voxels > 0.0) || !std::isfinite(opt.tbv_voxels))
     return Status::Error("tbv_voxels", "must be finite and > 0");
   if (!(opt.tbv_max_voxels >= opt.tbv_voxels) || !std::isfinite(opt.tbv_max_voxels))

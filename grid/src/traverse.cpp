@@ -54,7 +54,7 @@ struct IBox {
   std::int64_t hi[3];
 };
 
-/// Half-open int64 range helper.
+/// An inclusive int64 range [lo, hi]; empty when hi < lo.
 struct Range {
   std::int64_t lo = 0, hi = -1;
   bool empty() const { return hi < lo; }

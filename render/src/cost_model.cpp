@@ -159,7 +159,7 @@ bool Renderer::Impl::ensure_model(std::string* note, std::string* error) {
     glGenQueries(static_cast<GLsizei>(256 - old), queries.data() + old);
   }
   auto draw = [](std::size_t k, GLsizei count = 1) {
-    glDrawElementsInstancedBaseInstance(GL_TRIANGLES, 36, GL_UNSIGNED_BYTE, nullptr, count, static_cast<GLuint>(k));
+    glDrawElementsInstancedBaseInstance(GL_TRIANGLES, detail::kBoxIndices, GL_UNSIGNED_BYTE, nullptr, count, static_cast<GLuint>(k));
   };
   std::vector<GLuint> results;
   // As the levels read them: a round at once where the query buffer is on.
