@@ -77,6 +77,12 @@ Status begin(FrameRun& f, Scene::Clock clock, bool* expired) {
   return Status::Ok();
 }
 
+/// Asks for the cache lines of an object that a TBV's renewal reads.
+void prefetch_obj(const Obj& o) {
+  const char* p = reinterpret_cast<const char*>(&o);
+  for (std::size_t off = 0; off < sizeof(Obj); off += 64) __builtin_prefetch(p + off);
+}
+
 /// Phase 1, exclusive: the queue other frames left, and expired TBVs given
 /// a new validity period around the object's current position (paper 4.1,
 /// criterion 2); an object hidden through a whole period gets twice as long
@@ -97,7 +103,13 @@ void renew(FrameRun& f) {
     due.push_back(s.expiry.top());
     s.expiry.pop();
   }
-  for (const detail::ExpiryEntry& e : due) {
+  // The objects are scattered over the scene's memory (a cache miss each,
+  // most of a renewal's time at 100,000 hidden objects): fetched a few ahead.
+  constexpr std::size_t kAhead = 4;
+  for (std::size_t k = 0; k < std::min(kAhead, due.size()); ++k) prefetch_obj(s.objs[due[k].slot]);
+  for (std::size_t k = 0; k < due.size(); ++k) {
+    const detail::ExpiryEntry& e = due[k];
+    if (k + kAhead < due.size()) prefetch_obj(s.objs[due[k + kAhead].slot]);
     Obj& o = s.objs[e.slot];
     if (!o.under_tbv || o.tbv_epoch != e.epoch) continue;
     o.tbv_period = std::fmin(2.0 * o.tbv_period, s.max_period(o));
