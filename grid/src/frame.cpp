@@ -77,10 +77,13 @@ Status begin(FrameRun& f, Scene::Clock clock, bool* expired) {
   return Status::Ok();
 }
 
-/// Asks for the cache lines of an object that a TBV's renewal reads.
+/// Asks for the cache lines of an object that a TBV's renewal reads: its
+/// fields up to the TBV's (the mesh's, after them, are not read).
 void prefetch_obj(const Obj& o) {
   const char* p = reinterpret_cast<const char*>(&o);
-  for (std::size_t off = 0; off < sizeof(Obj); off += 64) __builtin_prefetch(p + off);
+  const char* end = reinterpret_cast<const char*>(&o.tbv_coarse + 1);
+  for (; p < end; p += 64) __builtin_prefetch(p);
+  __builtin_prefetch(end - 1);
 }
 
 /// Phase 1, exclusive: the queue other frames left, and expired TBVs given
