@@ -59,6 +59,8 @@ stage "AddressSanitizer + UndefinedBehaviorSanitizer build and tests"
 cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DVOXVIS_SANITIZE=ON \
   -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" -DVOXVIS_BUILD_BENCHMARKS=OFF
 cmake --build build-asan -j "$jobs"
+# The sanitizer build also checks the engine's invariants (VOXVIS_ASSERT,
+# voxvis/assert.h; compiled out of Release).
 # Under the sanitizers every test runs, the property and hard-case tests at a
 # quarter of their count (VOXVIS_TEST_SCALE, tests/support/scenes.h): they
 # check that the same code paths touch memory and arithmetic soundly, which a

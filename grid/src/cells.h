@@ -28,6 +28,7 @@
 #include <glm/vec3.hpp>
 
 #include "voxbox.h"
+#include "voxvis/assert.h"
 
 namespace voxvis::detail {
 
@@ -54,6 +55,8 @@ struct Pyramid {
            static_cast<std::size_t>(res[l].z);
   }
   std::size_t index(int l, const glm::ivec3& c) const {
+    VOXVIS_ASSERT(l >= 0 && l < levels && c.x >= 0 && c.y >= 0 && c.z >= 0 && c.x < res[l].x && c.y < res[l].y &&
+                  c.z < res[l].z);
     return static_cast<std::size_t>(c.x) +
            static_cast<std::size_t>(res[l].x) *
                (static_cast<std::size_t>(c.y) + static_cast<std::size_t>(res[l].y) * static_cast<std::size_t>(c.z));

@@ -9,6 +9,7 @@
 #include <glm/geometric.hpp>
 
 #include "numeric.h"
+#include "voxvis/assert.h"
 
 namespace voxvis::detail {
 namespace {
@@ -270,6 +271,7 @@ VOXVIS_PIXEL_LOOP bool OcclusionBuffer::fill(const ConvexOccluder& occ) {
     }
     if (!(lo <= hi)) continue;
     const int i0 = static_cast<int>(lo), i1 = static_cast<int>(hi);
+    VOXVIS_ASSERT(i0 >= 0 && i1 < w_ && j >= 0 && j < h_);
     // Rows of tiles where every pixel already holds this occluder's
     // largest bound or more: nothing to raise. Stale minima are lower
     // bounds, so the skip is safe with them.
@@ -332,6 +334,7 @@ VOXVIS_PIXEL_LOOP bool OcclusionBuffer::fill(const ConvexOccluder& occ) {
 }
 
 VOXVIS_PIXEL_LOOP float OcclusionBuffer::tile_min(std::size_t t) const {
+  VOXVIS_ASSERT(t < tile_min_.size());
   if (tile_dirty_[t]) {
     const int ti = static_cast<int>(t % static_cast<std::size_t>(tw_)), tj = static_cast<int>(t / static_cast<std::size_t>(tw_));
     const int i1 = std::min(w_, (ti + 1) * kTile), j1 = std::min(h_, (tj + 1) * kTile);

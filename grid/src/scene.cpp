@@ -468,6 +468,9 @@ void Scene::Impl::brick_add(const VoxBox& vb, std::uint32_t key, std::uint32_t g
 
 void Scene::Impl::brick_remove(const VoxBox& vb, std::uint32_t coarse) {
   tbv_cells_of(pyr, vb, coarse, [&](int level, const glm::ivec3& c) {
+    // The same cells brick_add wrote (the choice of cells is stored with
+    // the entry's owner): each still counts its entry.
+    VOXVIS_ASSERT(dyn_cell(level, c).live > 0 && (level == 1 || coarse_dyn_live > 0));
     --dyn_cell(level, c).live;
     if (level > 1) --coarse_dyn_live;
     dyn_count_add(level, c, -1);
@@ -481,6 +484,7 @@ void Scene::Impl::dyn_count_add(int level, glm::ivec3 c, int delta) {
   // that already holds something touches that one cell.
   for (int l = level; l < pyr.levels; ++l, c >>= detail::kCellShift) {
     std::uint32_t& n = dyn_count[static_cast<std::size_t>(l)][pyr.index(l, c)];
+    VOXVIS_ASSERT(delta >= 0 || std::int64_t{n} + delta >= 0);
     const bool was = n > 0;
     n = static_cast<std::uint32_t>(static_cast<std::int64_t>(n) + delta);
     if (was == (n > 0)) return;

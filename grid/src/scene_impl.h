@@ -40,6 +40,7 @@
 #include "region_cavity.h"
 #include "region_occlusion.h"
 #include "voxbox.h"
+#include "voxvis/assert.h"
 #include "voxvis/mesh.h"
 #include "voxvis/scene.h"
 
@@ -448,6 +449,7 @@ struct Scene::Impl {
 
   // --- geometry -----------------------------------------------------------
   std::int64_t index(int x, int y, int z) const {
+    VOXVIS_ASSERT(x >= 0 && y >= 0 && z >= 0 && x < res.x && y < res.y && z < res.z);
     return x + std::int64_t{res.x} * (y + std::int64_t{res.y} * z);
   }
 
