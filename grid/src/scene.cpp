@@ -352,14 +352,19 @@ bool Scene::Impl::box_inside_grid(const Vec3& lo, const Vec3& hi) const {
 
 namespace {
 
+/// The bricks (bricks_res coordinates) holding the voxels of vb; empty for
+/// an empty vb.
+VoxBox bricks_of(const VoxBox& vb) {
+  return vb.empty() ? vb : VoxBox{vb.lo >> detail::kBrickShift, vb.hi >> detail::kBrickShift};
+}
+
 /// The cells of levels >= 1 that hold the entries of voxel box vb: its range
 /// of bricks split into the coarsest cells wholly inside it (cells.h).
 template <class Emit>
 void dyn_cells_of(const detail::Pyramid& pyr, const VoxBox& vb, Emit&& emit) {
   if (vb.empty()) return;
-  const VoxBox range{vb.lo >> detail::kBrickShift, vb.hi >> detail::kBrickShift};
   detail::decompose(
-      pyr, 1, range, [](const VoxBox&) { return true; }, [](const VoxBox&) { return false; }, true, emit,
+      pyr, 1, bricks_of(vb), [](const VoxBox&) { return true; }, [](const VoxBox&) { return false; }, true, emit,
       [](std::uint64_t) { return true; });
 }
 
@@ -394,7 +399,7 @@ void tbv_cells_of(const detail::Pyramid& pyr, const VoxBox& vb, std::uint32_t co
     dyn_cells_of(pyr, vb, emit);
     return;
   }
-  const VoxBox bricks{vb.lo >> detail::kBrickShift, vb.hi >> detail::kBrickShift};
+  const VoxBox bricks = bricks_of(vb);
   for_cells2(pyr, cells2_over(bricks), bricks, [&](int k, const glm::ivec3& c, const VoxBox& span, const VoxBox& in) {
     if ((coarse >> k & 1u) || in == span) {
       emit(2, c);
@@ -412,8 +417,7 @@ void tbv_cells_of(const detail::Pyramid& pyr, const VoxBox& vb, std::uint32_t co
 bool same_tbv_cells(const detail::Pyramid& pyr, const VoxBox& old_vb, std::uint32_t old_coarse, const VoxBox& vb,
                     std::uint32_t coarse) {
   if (old_coarse == 0 || coarse == 0 || old_vb.empty() || vb.empty()) return false;
-  const VoxBox ob{old_vb.lo >> detail::kBrickShift, old_vb.hi >> detail::kBrickShift};
-  const VoxBox nb{vb.lo >> detail::kBrickShift, vb.hi >> detail::kBrickShift};
+  const VoxBox ob = bricks_of(old_vb), nb = bricks_of(vb);
   const VoxBox cells = cells2_over(nb);
   if (cells != cells2_over(ob)) return false;
   bool same = true;
@@ -440,7 +444,7 @@ std::uint32_t Scene::Impl::tbv_coarse_cells(const VoxBox& vb, bool quiet) const 
   // (the shell traversal tests entries voxel by voxel), and only a memory
   // of seen space tells where a cell is not in view.
   if (vb.empty() || dyn_count[1].empty() || cell_any_seen_at.empty() || !(options.tbv_seen_memory > 0.0)) return 0;
-  const VoxBox range{vb.lo >> detail::kBrickShift, vb.hi >> detail::kBrickShift};
+  const VoxBox range = bricks_of(vb);
   const VoxBox cells = cells2_over(range);
   if (cells.empty()) return 0;
   // Behind a wall, the usual case, nothing around the range was seen: one
@@ -649,8 +653,8 @@ double Scene::Impl::unseen_growth(const Obj& o, const Vec3& lo, const Vec3& hi, 
   // short of the whole layer instead, since a TBV that reaches into a brick
   // with seen voxels costs every visit of that brick's voxels.
   const int bs = 1 << detail::kBrickShift;
-  VoxBox r{own.lo >> detail::kBrickShift, own.hi >> detail::kBrickShift};
-  const VoxBox t{want.lo >> detail::kBrickShift, want.hi >> detail::kBrickShift};
+  VoxBox r = bricks_of(own);
+  const VoxBox t = bricks_of(want);
   // Nothing seen anywhere it may grow (a TBV behind a wall): every round
   // below would find its layer unseen.
   if (unseen_range(t)) return inf;
@@ -810,9 +814,6 @@ void Scene::Impl::renew_tbv(std::uint32_t slot, double now) {
   // range that did not change writes nothing, and one that changed is
   // written anew: the old entries go stale (a new generation), about the
   // TBV's surface in cells.
-  const auto bricks_of = [](const VoxBox& b) {
-    return b.empty() ? b : VoxBox{b.lo >> detail::kBrickShift, b.hi >> detail::kBrickShift};
-  };
   const VoxBox old_vb = o.tbv_voxels;
   if (cut) {
     // The cut box replaces the old one. Over the same bricks (the usual
