@@ -13,17 +13,6 @@
 
 #include "voxvis/types.h"
 
-/// Pixel loops built twice on x86-64 with GCC or Clang: for AVX2 (four
-/// doubles to an instruction) and for the baseline, the one to run chosen
-/// once at load time by the CPU. Results are the same bit for bit: the
-/// engine is built with -ffp-contract=off, and AVX2 alone brings no FMA.
-/// Define VOXVIS_NO_CLONES to build the baseline alone (to time it, say).
-#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && !defined(VOXVIS_NO_CLONES)
-#define VOXVIS_PIXEL_LOOP __attribute__((target_clones("avx2", "default")))
-#else
-#define VOXVIS_PIXEL_LOOP
-#endif
-
 namespace voxvis::detail {
 
 /// A cheap monotonic tick count for splitting a frame's time into parts

@@ -9,6 +9,7 @@
 #include <glm/geometric.hpp>
 
 #include "numeric.h"
+#include "occlusion_tile.h"
 #include "voxvis/assert.h"
 
 namespace voxvis::detail {
@@ -16,23 +17,10 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kEps = std::numeric_limits<double>::epsilon();
-constexpr double kMaxDouble = std::numeric_limits<double>::max();
 constexpr double kPi = 3.14159265358979323846;
-/// A double bound times this and rounded to the nearest float is no larger
-/// than the bound (the rounding is at most 2^-24 relative).
-constexpr double kFloatDown = 1.0 - 0x1p-22;
 /// Pixels across a disc's image (at its nearest depth, an overestimate)
 /// under which it cannot cover a whole pixel: not drawn.
 constexpr double kLeastDiscPixels = 1.4;
-
-/// The largest float not above d (d >= 0), for bounds that must not grow.
-float round_down(double d) {
-  if (!(d > 0.0)) return 0.0f;
-  if (d >= static_cast<double>(std::numeric_limits<float>::max())) return std::numeric_limits<float>::max();
-  float f = static_cast<float>(d);
-  if (static_cast<double>(f) > d) f = std::nextafter(f, 0.0f);
-  return f;
-}
 
 /// The vertices of the regular n-gon on the unit circle, angle 2 pi k / n:
 /// the inscribed polygons of render_disc, computed once.
@@ -81,19 +69,12 @@ float round_up(double d) {
   return f;
 }
 
-/// How far an affine function evaluated over a w x h image may be off, and
-/// then some: its rounding is a few eps of its terms' magnitude.
-double margin(const PixelAffine& a, int w, int h) {
-  return 1e-12 * (std::fabs(a.c) + std::fabs(a.gx) * w + std::fabs(a.gy) * h) + 1e-300;
-}
-
 }  // namespace
 
 void OcclusionBuffer::begin(const WorldFrustum& wf, int width) {
-  if (width <= 0) {
-    w_ = 0;
-    return;
-  }
+  on_ = false;
+  if (width <= 0) return;
+  on_ = true;
   view_ = wf;
   eye_ = wf.eye;
   f_ = wf.f;
@@ -112,27 +93,21 @@ void OcclusionBuffer::begin(const WorldFrustum& wf, int width) {
   if (w != w_ || h != h_ || px_.empty()) {
     w_ = w;
     h_ = h;
-    stride_ = (w + kTile - 1) / kTile * kTile;
-    tw_ = stride_ / kTile;
-    th_ = (h + kTile - 1) / kTile;
-    px_.assign(static_cast<std::size_t>(stride_) * static_cast<std::size_t>(th_ * kTile), 0.0f);
-    row_lo_.assign(static_cast<std::size_t>(th_ * kTile), 0);
-    row_hi_.assign(static_cast<std::size_t>(th_ * kTile), -1);
-    tile_min_.assign(static_cast<std::size_t>(tw_) * static_cast<std::size_t>(th_), 0.0f);
-    tile_dirty_.assign(tile_min_.size(), 0);
+    tw_ = (w + kTileW - 1) / kTileW;
+    th_ = (h + kTileH - 1) / kTileH;
+    const std::size_t tiles = static_cast<std::size_t>(tw_) * static_cast<std::size_t>(th_);
+    // Pixels past the image hold +inf: never written, they never lower a
+    // tile's least bound (and make its largest +inf, which decides nothing).
+    px_.assign(tiles * kTilePixels, std::numeric_limits<float>::infinity());
+    for (int j = 0; j < h_; ++j)
+      for (int i = 0; i < w_; ++i) px_[at(i, j)] = 0.0f;
+    tile_min_.assign(tiles, 0.0f);
+    tile_max_.resize(tiles);
+    for (std::size_t t = 0; t < tiles; ++t) tile_max_[t] = tile_bound(px_.data() + t * kTilePixels, false);
+    tile_written_.assign(tiles, 0);
+    written_tiles_.clear();
   } else {
-    // Clear what the last frame wrote.
-    for (int j = 0; j < h_; ++j) {
-      const auto jj = static_cast<std::size_t>(j);
-      if (row_lo_[jj] <= row_hi_[jj])
-        std::fill(px_.begin() + static_cast<std::ptrdiff_t>(jj * static_cast<std::size_t>(stride_) + static_cast<std::size_t>(row_lo_[jj])),
-                  px_.begin() + static_cast<std::ptrdiff_t>(jj * static_cast<std::size_t>(stride_) + static_cast<std::size_t>(row_hi_[jj]) + 1),
-                  0.0f);
-      row_lo_[jj] = 0;
-      row_hi_[jj] = -1;
-    }
-    std::fill(tile_min_.begin(), tile_min_.end(), 0.0f);
-    std::fill(tile_dirty_.begin(), tile_dirty_.end(), std::uint8_t{0});
+    clear_written();
   }
   // d(X, Y) = f + (2X/W - 1) tan_x r + (2Y/H - 1) tan_y u.
   d0_ = f_ - tan_x_ * r_ - tan_y_ * u_;
@@ -145,8 +120,40 @@ PixelAffine OcclusionBuffer::linear(const Vec3& n) const {
   return PixelAffine{glm::dot(n, d0_), glm::dot(n, dx_), glm::dot(n, dy_)};
 }
 
+std::size_t OcclusionBuffer::at(int i, int j) const {
+  VOXVIS_ASSERT(i >= 0 && i < w_ && j >= 0 && j < h_);
+  const auto t = static_cast<std::size_t>(j / kTileH) * static_cast<std::size_t>(tw_) + static_cast<std::size_t>(i / kTileW);
+  return t * kTilePixels + static_cast<std::size_t>((j % kTileH) * kTileW + i % kTileW);
+}
+
+void OcclusionBuffer::clear_written() {
+  // Only pixels within the image are ever written; the others keep +inf.
+  for (const std::uint32_t t : written_tiles_) {
+    float* tile = px_.data() + static_cast<std::size_t>(t) * kTilePixels;
+    const int I0 = static_cast<int>(t % static_cast<std::uint32_t>(tw_)) * kTileW;
+    const int J0 = static_cast<int>(t / static_cast<std::uint32_t>(tw_)) * kTileH;
+    tile_min_[t] = 0.0f;
+    tile_written_[t] = 0;
+    if (I0 + kTileW <= w_ && J0 + kTileH <= h_) {
+      std::fill(tile, tile + kTilePixels, 0.0f);
+      tile_max_[t] = 0.0f;
+      continue;
+    }
+    const int ni = std::min(kTileW, w_ - I0), nj = std::min(kTileH, h_ - J0);
+    for (int dj = 0; dj < nj; ++dj) std::fill(tile + dj * kTileW, tile + dj * kTileW + ni, 0.0f);
+    tile_max_[t] = tile_bound(tile, false);
+  }
+  written_tiles_.clear();
+}
+
+float OcclusionBuffer::tile_bound(const float* tile, bool least) {
+  float m = tile[0];
+  for (int k = 1; k < kTilePixels; ++k) m = least ? std::min(m, tile[k]) : std::max(m, tile[k]);
+  return m;
+}
+
 float OcclusionBuffer::pixel(int i, int j) const {
-  const float w = px_[static_cast<std::size_t>(j) * static_cast<std::size_t>(stride_) + static_cast<std::size_t>(i)];
+  const float w = px_[at(i, j)];
   return w > 0.0f ? round_up(near_ / static_cast<double>(w)) : std::numeric_limits<float>::infinity();
 }
 
@@ -191,168 +198,10 @@ bool OcclusionBuffer::polygon_edges(const Vec3* v, int n, ConvexOccluder* occ) c
   return true;
 }
 
-VOXVIS_PIXEL_LOOP bool OcclusionBuffer::fill(const ConvexOccluder& occ) {
-  bool any = false;
-  const int np = occ.planes;
-  if (np == 0) return false;
-  // The edges by the side of the row they bound: gx > 0 from the left
-  // (pixels at or right of a column), gx < 0 from the right, the others
-  // (gx zero or NaN) the whole row or none. An edge's value at a pixel's
-  // worst corner is g at the pixel's centre less half its two slopes'
-  // magnitudes, less the rounding margin; on the row of centre Y it is zero
-  // at column x = a + b Y, with a and b taken once per occluder. (The
-  // margin, 1e-12 of the edge's magnitudes, covers the few roundings of the
-  // division and of a + b Y many times over.)
-  const double sgn = fault == BufferFault::OuterCoverage ? 1.0 : -1.0;
-  const double dsgn = fault == BufferFault::NearDepth ? 1.0 : -1.0;
-  constexpr int kE = ConvexOccluder::kMaxEdges;
-  double la[kE], lb[kE], ra[kE], rb[kE], fc[kE], fg[kE];
-  int nl = 0, nr = 0, nf = 0;
-  // An edge that is not finite: nothing is drawn. A crossing a + b Y that
-  // could leave the doubles for a row of the image (an edge all but level,
-  // gx a rounding's size beside gy) is taken as level instead, less its
-  // largest change across the image |gx| W, which only narrows the rows it
-  // passes. So every crossing below is finite, and no row needs a check.
-  constexpr double kCrossingLimit = 1e300;
-  const double row_limit = kCrossingLimit / (static_cast<double>(h_) + 1.0);
-  for (int k = 0; k < occ.edges; ++k) {
-    const PixelAffine& e = occ.edge[k];
-    if (!(std::fabs(e.c) <= kMaxDouble && std::fabs(e.gx) <= kMaxDouble && std::fabs(e.gy) <= kMaxDouble))
-      return false;
-    const double c = e.c + sgn * 0.5 * (std::fabs(e.gx) + std::fabs(e.gy)) - margin(e, w_, h_);
-    const double a = e.gx != 0.0 ? -c / e.gx - 0.5 : kInf, b = e.gx != 0.0 ? -e.gy / e.gx : kInf;
-    const bool crossing = std::fabs(a) <= kCrossingLimit && std::fabs(b) <= row_limit;
-    if (crossing && e.gx > 0.0) {
-      la[nl] = a, lb[nl] = b;
-      ++nl;
-    } else if (crossing) {
-      ra[nr] = a, rb[nr] = b;
-      ++nr;
-    } else {
-      fc[nf] = c - std::fabs(e.gx) * static_cast<double>(w_), fg[nf] = e.gy;
-      ++nf;
-    }
-  }
-  if (nl % 2) la[nl] = la[0], lb[nl] = lb[0];
-  if (nr % 2) ra[nr] = ra[0], rb[nr] = rb[0];
-  const float skip_at = round_down(occ.w_max * near_ * occ.slack);
-  for (int j = occ.j0; j <= occ.j1; ++j) {
-    const double Y = j + 0.5;
-    // The row's columns lie between the farthest crossings of each side;
-    // the rounding allowance x +- 1e-9 (1 + |x|) and ceil / floor are
-    // monotone in x, so the bound of the farthest crossing is the farthest
-    // bound: one ceil and one floor a row, over loops without branches.
-    // Two edges at a time into two accumulators (the lists are padded to
-    // even lengths with a copy of their first edge), so that no chain of
-    // dependent maxima serializes the loop.
-    double xl0 = -kInf, xl1 = -kInf, xr0 = kInf, xr1 = kInf;
-    for (int k = 0; k < nl; k += 2) {
-      const double x0 = la[k] + lb[k] * Y, x1 = la[k + 1] + lb[k + 1] * Y;
-      xl0 = x0 > xl0 ? x0 : xl0;
-      xl1 = x1 > xl1 ? x1 : xl1;
-    }
-    for (int k = 0; k < nr; k += 2) {
-      const double x0 = ra[k] + rb[k] * Y, x1 = ra[k + 1] + rb[k + 1] * Y;
-      xr0 = x0 < xr0 ? x0 : xr0;
-      xr1 = x1 < xr1 ? x1 : xr1;
-    }
-    bool level = true;  // The level edges pass the whole row, or none of it.
-    for (int k = 0; k < nf; ++k) level &= fc[k] + fg[k] * Y >= 0.0;
-    if (!level) continue;
-    const double xl = xl0 > xl1 ? xl0 : xl1, xr = xr0 < xr1 ? xr0 : xr1;
-    double lo = occ.i0, hi = occ.i1;
-    if (nl > 0) {
-      const double c = std::ceil(xl + 1e-9 * (1.0 + std::fabs(xl)));
-      lo = c > lo ? c : lo;
-    }
-    if (nr > 0) {
-      const double c = std::floor(xr - 1e-9 * (1.0 + std::fabs(xr)));
-      hi = c < hi ? c : hi;
-    }
-    if (!(lo <= hi)) continue;
-    const int i0 = static_cast<int>(lo), i1 = static_cast<int>(hi);
-    VOXVIS_ASSERT(i0 >= 0 && i1 < w_ && j >= 0 && j < h_);
-    // Rows of tiles where every pixel already holds this occluder's
-    // largest bound or more: nothing to raise. Stale minima are lower
-    // bounds, so the skip is safe with them.
-    {
-      const std::size_t t0 = static_cast<std::size_t>(j / kTile) * static_cast<std::size_t>(tw_);
-      bool saturated = true;
-      for (int ti = i0 / kTile; ti <= i1 / kTile && saturated; ++ti)
-        saturated = tile_min_[t0 + static_cast<std::size_t>(ti)] >= skip_at;
-      if (saturated) continue;
-    }
-    double a[ConvexOccluder::kMaxPlanes], g[ConvexOccluder::kMaxPlanes];
-    for (int k = 0; k < (np == 1 ? 1 : ConvexOccluder::kMaxPlanes); ++k) {
-      const PixelAffine& p = occ.plane[k < np ? k : 0];
-      g[k] = p.gx;
-      a[k] = p.c + p.gy * Y + 0.5 * p.gx + dsgn * 0.5 * (std::fabs(p.gx) + std::fabs(p.gy));
-    }
-    const double cap = occ.w_cap > 0.0 ? occ.w_cap : kInf;
-    const double s = occ.slack * kFloatDown * near_;
-    float* row = px_.data() + static_cast<std::size_t>(j) * static_cast<std::size_t>(stride_);
-    int raised = 0;
-    // Comparisons, not std::fmin/fmax (library calls at -O3 for their NaN
-    // rule, two thirds of the time of a frame indoors), in a form the
-    // compiler vectorizes: a NaN in the first operand of a min stays and
-    // then raises no bound, in the second it is passed over as fmin would;
-    // never a larger bound than fmin's.
-    if (np == 1) {  // A disc: one plane (the general loop would take it thrice).
-      for (int i = i0; i <= i1; ++i) {
-        const double w = std::min(a[0] + g[0] * static_cast<double>(i), cap) * s;
-        const float fw = static_cast<float>(std::max(w, 0.0));
-        const float old = row[i];
-        raised += fw > old ? 1 : 0;
-        row[i] = fw > old ? fw : old;
-      }
-    } else {
-      for (int i = i0; i <= i1; ++i) {
-        const double x = static_cast<double>(i);
-        const double p0 = a[0] + g[0] * x, p1 = a[1] + g[1] * x, p2 = a[2] + g[2] * x;
-        const double w = std::min(std::min(p0, p1), std::min(p2, cap)) * s;
-        const float fw = static_cast<float>(std::max(w, 0.0));  // NaN stays NaN, and raises nothing.
-        const float old = row[i];
-        raised += fw > old ? 1 : 0;
-        row[i] = fw > old ? fw : old;
-      }
-    }
-    if (raised == 0) continue;
-    any = true;
-    written_ += static_cast<std::uint64_t>(raised);
-    const auto jj = static_cast<std::size_t>(j);
-    if (row_lo_[jj] > row_hi_[jj]) {
-      row_lo_[jj] = i0;
-      row_hi_[jj] = i1;
-    } else {
-      row_lo_[jj] = std::min(row_lo_[jj], i0);
-      row_hi_[jj] = std::max(row_hi_[jj], i1);
-    }
-    const std::size_t t0 = static_cast<std::size_t>(j / kTile) * static_cast<std::size_t>(tw_);
-    for (int ti = i0 / kTile; ti <= i1 / kTile; ++ti) tile_dirty_[t0 + static_cast<std::size_t>(ti)] = 1;
-  }
-  return any;
-}
-
-VOXVIS_PIXEL_LOOP float OcclusionBuffer::tile_min(std::size_t t) const {
-  VOXVIS_ASSERT(t < tile_min_.size());
-  if (tile_dirty_[t]) {
-    const int ti = static_cast<int>(t % static_cast<std::size_t>(tw_)), tj = static_cast<int>(t / static_cast<std::size_t>(tw_));
-    const int i1 = std::min(w_, (ti + 1) * kTile), j1 = std::min(h_, (tj + 1) * kTile);
-    float m = std::numeric_limits<float>::max();
-    for (int j = tj * kTile; j < j1; ++j) {
-      const float* row = px_.data() + static_cast<std::size_t>(j) * static_cast<std::size_t>(stride_);
-      for (int i = ti * kTile; i < i1; ++i) m = std::min(m, row[i]);
-    }
-    tile_min_[t] = m;
-    tile_dirty_[t] = 0;
-  }
-  return tile_min_[t];
-}
-
 double OcclusionBuffer::farthest_bound() const {
   if (!on()) return kInf;
   float m = std::numeric_limits<float>::max();
-  for (std::size_t t = 0; t < tile_min_.size() && m > 0.0f; ++t) m = std::min(m, tile_min(t));
+  for (std::size_t t = 0; t < tile_min_.size() && m > 0.0f; ++t) m = std::min(m, tile_min_[t]);
   return m > 0.0f ? near_ / static_cast<double>(m) * (1.0 + 4.0 * kEps) : kInf;
 }
 
@@ -639,19 +488,22 @@ bool OcclusionBuffer::render_box_frame(const Vec3 axes[3], const Vec3& L, const 
 }
 
 bool OcclusionBuffer::rect_hidden(int i0, int i1, int j0, int j1, double w, OccludeeDepth* depth) const {
-  for (int tj = j0 / kTile; tj <= j1 / kTile; ++tj) {
-    for (int ti = i0 / kTile; ti <= i1 / kTile; ++ti) {
-      const auto t = static_cast<std::size_t>(tj * tw_ + ti);
-      const double tmin = static_cast<double>(tile_min(t));
+  for (int ty = j0 / kTileH; ty <= j1 / kTileH; ++ty) {
+    for (int tx = i0 / kTileW; tx <= i1 / kTileW; ++tx) {
+      const auto t = static_cast<std::size_t>(ty) * static_cast<std::size_t>(tw_) + static_cast<std::size_t>(tx);
+      const double tmin = static_cast<double>(tile_min_[t]);
       if (tmin > w) continue;
-      const int pi0 = std::max(i0, ti * kTile), pi1 = std::min(i1, ti * kTile + kTile - 1);
-      const int pj0 = std::max(j0, tj * kTile), pj1 = std::min(j1, tj * kTile + kTile - 1);
+      const int I0 = tx * kTileW, J0 = ty * kTileH;
+      const int pi0 = std::max(i0, I0), pi1 = std::min(i1, I0 + kTileW - 1);
+      const int pj0 = std::max(j0, J0), pj1 = std::min(j1, J0 + kTileH - 1);
+      const float* tile = px_.data() + t * kTilePixels;
       if (!depth) {
-        for (int j = pj0; j <= pj1; ++j) {
-          const float* row = px_.data() + static_cast<std::size_t>(j) * static_cast<std::size_t>(stride_);
+        // Every pixel of the tile at or below the occludee's bound: one of
+        // them lies in the rectangle, and does not hide it.
+        if (!(static_cast<double>(tile_max_[t]) > w)) return false;
+        for (int j = pj0; j <= pj1; ++j)
           for (int i = pi0; i <= pi1; ++i)
-            if (!(static_cast<double>(row[i]) > w)) return false;
-        }
+            if (!(static_cast<double>(tile[(j - J0) * kTileW + (i - I0)]) > w)) return false;
         continue;
       }
       // With the occludee's planes: its largest reciprocal depth over the
@@ -661,9 +513,8 @@ bool OcclusionBuffer::rect_hidden(int i0, int i1, int j0, int j1, double w, Occl
       const double wt = depth->bound(w, pi0, pi1, pj0, pj1);
       if (tmin > wt) continue;
       for (int j = pj0; j <= pj1; ++j) {
-        const float* row = px_.data() + static_cast<std::size_t>(j) * static_cast<std::size_t>(stride_);
         for (int i = pi0; i <= pi1; ++i) {
-          const double v = static_cast<double>(row[i]);
+          const double v = static_cast<double>(tile[(j - J0) * kTileW + (i - I0)]);
           if (!(v > wt) && !(v > depth->bound(wt, i, i, j, j))) return false;
         }
       }
@@ -718,7 +569,7 @@ bool OcclusionBuffer::hides(const Vec3& rel, const Vec3& size, double tol, bool 
     const double yi = ((Y0 + glm::dot(u_, ch)) * izc * inv_tan_y_ + 1.0) * 0.5 * h_;
     if (xi >= 0.0 && xi < w_ && yi >= 0.0 && yi < h_) {
       const int i = static_cast<int>(xi), j = static_cast<int>(yi);
-      const double v = static_cast<double>(px_[static_cast<std::size_t>(j) * static_cast<std::size_t>(stride_) + static_cast<std::size_t>(i)]);
+      const double v = static_cast<double>(px_[at(i, j)]);
       if (!(v > wmin)) {
         if (!planes) return false;
         entry_planes(planes);

@@ -54,12 +54,16 @@
 // corner's. They cost more for a box in view, so the traversal's first
 // tests of cells and objects go without them (`fine` below).
 //
-// Tiles. Each 8x8 tile keeps the smallest bound of its pixels (0 where any
-// is empty), recomputed only when a test reads a tile that occluders wrote
-// since (bounds only grow, so a stale minimum is still a lower bound). Tests
-// read tiles first and pixels only in a tile that cannot decide. An occluder
-// skips the rows of tiles where every pixel already holds a bound at least
-// its own largest one.
+// Tiles. The pixels are stored by tiles of 8x4 (occlusion_tile.h), each
+// with the least and the largest bound of its pixels (0 where any is empty;
+// pixels past the image's right and bottom sides hold +inf, never written),
+// kept as occluders write. The rasterizer (occlusion_fill.cpp) writes a tile
+// at a time with coverage masks, in single precision re-centred on the tile
+// (its rounding argued there), by a scalar kernel or an AVX2 one that give
+// the same bits; it skips tiles whose least bound is at least the
+// occluder's largest. Tests read tiles first: a tile whose least bound is
+// above the occludee's hides it there, one whose largest is not does not;
+// pixels are read only in a tile that cannot decide.
 #pragma once
 
 #include <cmath>
@@ -80,6 +84,12 @@ enum class BufferFault : std::uint8_t {
   None,
   NearDepth,      ///< Occluders write their nearest depth over the pixel instead of the farthest.
   OuterCoverage,  ///< Occluders write every pixel a corner ray may hit.
+};
+
+/// Which tile kernel the rasterizer runs (occlusion_tile.h).
+enum class BufferKernel : std::uint8_t {
+  Auto,    ///< AVX2 where the CPU has it, else the scalar reference.
+  Scalar,  ///< The scalar reference (the tests compare the two).
 };
 
 /// An affine function of the pixel coordinates: c + gx * X + gy * Y.
@@ -136,17 +146,16 @@ struct OccludeeDepth {
 
 class OcclusionBuffer {
  public:
-  static constexpr int kTile = 8;
   static constexpr int kMaxSide = 4096;
 
   /// Starts a frame over the image of `wf` with `width` columns (0: off) and
   /// rows from the aspect (square pixels), at most kMaxSide.
   void begin(const WorldFrustum& wf, int width);
-  void end() { w_ = 0; }
-  bool on() const { return w_ > 0; }
+  void end() { on_ = false; }
+  bool on() const { return on_; }
   const Vec3& eye() const { return eye_; }
-  int width() const { return w_; }
-  int height() const { return h_; }
+  int width() const { return on_ ? w_ : 0; }
+  int height() const { return on_ ? h_ : 0; }
 
   /// Renders a sphere or a box (world units) as an occluder. Returns whether
   /// it raised any pixel's bound.
@@ -209,6 +218,7 @@ class OcclusionBuffer {
   std::uint64_t writes() const { return written_; }
 
   BufferFault fault = BufferFault::None;
+  BufferKernel kernel = BufferKernel::Auto;
 
  private:
   /// Pixel rectangle [i0, i1] x [j0, j1] (clamped) from the image range of a
@@ -263,24 +273,33 @@ class OcclusionBuffer {
   /// Fills a disc's polygon (its edges set) at the depth of the plane
   /// {n·p = den} given as n / den; w_max and slack as in ConvexOccluder.
   bool fill_disc(ConvexOccluder* occ, const Vec3& plane, double w_max, double slack);
-  /// Rasterizes the occluder; whether a bound was raised.
+  /// Rasterizes the occluder (occlusion_fill.cpp); whether a bound was raised.
   bool fill(const ConvexOccluder& occ);
-  /// Smallest bound of tile t (written this frame), refreshed when stale.
-  float tile_min(std::size_t t) const;
+  /// Index of pixel (i, j) in px_.
+  std::size_t at(int i, int j) const;
+  /// Zeroes the pixels the last frame wrote and their tiles' bounds.
+  void clear_written();
+  /// The least (else the largest) of a tile's 32 bounds.
+  static float tile_bound(const float* tile, bool least);
 
   WorldFrustum view_;
   Vec3 eye_{0.0}, f_{0.0}, r_{0.0}, u_{0.0};
   Vec3 d0_{0.0}, dx_{0.0}, dy_{0.0};  ///< d(X, Y) = d0 + X dx + Y dy.
   double tan_x_ = 1.0, tan_y_ = 1.0, near_ = 0.0;
   double inv_tan_x_ = 1.0, inv_tan_y_ = 1.0;
-  int w_ = 0, h_ = 0, stride_ = 0, tw_ = 0, th_ = 0;
+  bool on_ = false;  ///< Between begin (with a width) and end.
+  /// The image's size, kept after end so that the next frame of the same
+  /// size clears only what was written instead of the whole buffer.
+  int w_ = 0, h_ = 0, tw_ = 0, th_ = 0;
   std::uint64_t written_ = 0;  ///< Pixel bounds raised this frame.
-  std::vector<float> px_;      ///< Row-major, stride_ floats a row: reciprocal depth bounds.
-  /// Per row, the columns written this frame ([lo, hi], lo > hi: none), so
-  /// that a frame clears only what the previous one wrote.
-  std::vector<int> row_lo_, row_hi_;
-  mutable std::vector<float> tile_min_;
-  mutable std::vector<std::uint8_t> tile_dirty_;
+  /// Reciprocal depth bounds, tile by tile (tw_ x th_ tiles of 8x4 pixels,
+  /// occlusion_tile.h), row-major within a tile.
+  std::vector<float> px_;
+  std::vector<float> tile_min_, tile_max_;  ///< Least and largest bound of each tile.
+  /// Tiles written this frame (listed once each), so that a frame clears
+  /// only what the previous one wrote.
+  std::vector<std::uint32_t> written_tiles_;
+  std::vector<std::uint8_t> tile_written_;
 };
 
 }  // namespace voxvis::detail

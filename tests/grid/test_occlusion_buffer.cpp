@@ -271,7 +271,8 @@ bool ray_triangle(const Vec3& eye, const Vec3& d, const Vec3& a, const Vec3& b, 
   return u >= 0.0 && v >= 0.0 && u + v <= 1.0 && *t > 0.0;
 }
 
-int check_written_bounds(double scale, bool tiny_near, std::uint64_t seed) {
+int check_written_bounds(double scale, bool tiny_near, std::uint64_t seed,
+                         detail::BufferKernel kernel = detail::BufferKernel::Auto) {
   Rng rng(seed);
   int checked = 0;
   for (int trial = 0; trial < scaled(300); ++trial) {
@@ -291,6 +292,7 @@ int check_written_bounds(double scale, bool tiny_near, std::uint64_t seed) {
     EXPECT_TRUE(make_basis(cam, &vb));
     const int width = rng.chance(0.5) ? 16 : 64;
     OcclusionBuffer ob = begin(cam, width);
+    ob.kernel = kernel;
     ObjectDesc o;
     // A third of the shapes sit at the near plane, so that they cross it.
     const Vec3 at = rng.chance(0.33) ? cam.eye + glm::normalize(cam.dir) * (cam.near * rng.uniform(0.5, 3.0)) +
@@ -428,6 +430,11 @@ TEST(OcclusionBuffer, AlmostLevelEdgesWriteOnlyWhatTheirRaysHit) {
 }
 
 TEST(OcclusionBuffer, WrittenBoundsHoldForEveryRayOfThePixel) { EXPECT_GT(check_written_bounds(1.0, false, 42), 1000); }
+
+TEST(OcclusionBuffer, WrittenBoundsHoldWithTheScalarTileKernel) {
+  EXPECT_GT(check_written_bounds(1.0, false, 44, detail::BufferKernel::Scalar), 1000);
+  EXPECT_GT(check_written_bounds(1e-90, true, 45, detail::BufferKernel::Scalar), 500);
+}
 
 TEST(OcclusionBuffer, WrittenBoundsHoldAtEveryScale) {
   // A world shrunk to 1e-90 or grown to 1e8, and near planes far below the

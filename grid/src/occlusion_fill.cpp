@@ -1,0 +1,201 @@
+// occlusion_fill.cpp — the rasterizer: a convex occluder written into the
+// occlusion buffer a tile of 8 x 4 pixels at a time (after Intel's Masked
+// Occlusion Culling), keeping the rules of occlusion_buffer.h: a pixel is
+// written only when every edge's value at the pixel's worst corner is >= 0
+// (inner coverage), with the least of the depth planes at the pixel's worst
+// corner (the farthest first hit), lowered by the occluder's slack.
+//
+// Per occluder, in double precision: each edge and plane taken to its worst
+// corner (the value at pixel (i, j) is c + gx i + gy j), each edge divided by
+// its magnitude over the image (so its values lie within [-1, 1] and fit a
+// float), each plane multiplied by near * slack.
+//
+// Per tile, in double precision: each edge's value at the tile's first pixel
+// Et and its least and largest over the tile. An edge below zero over the
+// whole tile leaves the tile alone; one at or above its rounding allowance
+// over the whole tile needs no test per pixel; the others go to the kernel.
+// A tile whose least bound is already at least the occluder's largest, or at
+// least the planes' largest over the tile, is skipped (skipping only ever
+// writes less).
+//
+// Per pixel, in single precision (occlusion_tile.h), re-centred on the tile:
+// f = fl(fl(fl(Et - m) + fl(fl(gy) dj)) + fl(fl(gx) di)), di < 8, dj < 4.
+// Each of the five roundings is at most u = 2^-24 of its operand, and every
+// operand is at most M = |Et| + m + 8|gx| + 4|gy| in magnitude, so
+// |f - (E - m)| <= 5.1 u M + (denormals) 5 * 2^-149. With
+// m = 2^-20 (|Et| + 8|gx| + 4|gy|) + 1e-30 = 16 u (M - m) + 1e-30, that is
+// below m: f <= E, so f >= 0 only where the exact edge is >= 0, and a plane's
+// f is never above its exact bound. The double-precision Et is itself off by
+// a few eps of the function's magnitude over the image, which the edges'
+// margin (occlusion_buffer.cpp: 1e-12 of it) covers and the planes' margin
+// adds. Planes whose values over a tile exceed 1e30 would overflow a float:
+// such a tile is skipped (a depth far inside the near plane; only ever writes
+// less). Edges, normalized, never come near.
+#include <cmath>
+#include <limits>
+
+#include "numeric.h"
+#include "occlusion_buffer.h"
+#include "occlusion_tile.h"
+#include "voxvis/assert.h"
+
+namespace voxvis::detail {
+namespace {
+
+constexpr double kMaxDouble = std::numeric_limits<double>::max();
+constexpr double kEps = std::numeric_limits<double>::epsilon();
+/// The single-precision allowance per unit of magnitude: 16 u, u = 2^-24.
+constexpr double kFloatAllowance = 0x1p-20;
+/// Plane values beyond this over a tile could overflow a float.
+constexpr double kPlaneLimit = 1e30;
+
+/// One affine function of the pixel indices, c + gx i + gy j, in double,
+/// with its per-tile offsets in float and what a tile's set-up needs of it.
+struct TiledAffine {
+  double c = 0.0, gx = 0.0, gy = 0.0;
+  double down = 0.0, up = 0.0;  ///< Least and largest change from a tile's first pixel over the tile.
+  double m0 = 0.0;              ///< The allowance but for its part in the value: m = kFloatAllowance |a| + m0.
+  float row[kTileH] = {}, col[kTileW] = {};
+
+  void set(double c_, double gx_, double gy_) {
+    c = c_, gx = gx_, gy = gy_;
+    const double dx = gx * (kTileW - 1), dy = gy * (kTileH - 1);
+    down = (dx < 0.0 ? dx : 0.0) + (dy < 0.0 ? dy : 0.0);
+    up = (dx > 0.0 ? dx : 0.0) + (dy > 0.0 ? dy : 0.0);
+    m0 = kFloatAllowance * (kTileW * std::fabs(gx) + kTileH * std::fabs(gy)) + 1e-30;
+    const float fx = static_cast<float>(gx), fy = static_cast<float>(gy);
+    for (int k = 0; k < kTileW; ++k) col[k] = fx * static_cast<float>(k);
+    for (int k = 0; k < kTileH; ++k) row[k] = fy * static_cast<float>(k);
+  }
+  double at(int i, int j) const { return c + gx * i + gy * j; }
+  /// The single-precision allowance at a tile whose first value is `a`.
+  double allowance(double a) const { return kFloatAllowance * std::fabs(a) + m0; }
+  TileAffine tile(double a, double m) const { return TileAffine{static_cast<float>(a - m), row, col}; }
+};
+
+/// What fill derives once per occluder.
+struct FillSetup {
+  int edges = 0, planes = 0;
+  TiledAffine edge[ConvexOccluder::kMaxEdges];
+  TiledAffine plane[ConvexOccluder::kMaxPlanes];
+  /// Per plane, 8 eps of its largest coefficient: the double evaluation at
+  /// pixel (i, j) is off by less than plane_eps (1 + i + j).
+  double plane_eps[ConvexOccluder::kMaxPlanes] = {};
+  float cap = 0.0f;
+};
+
+/// The largest float not above d (d >= 0).
+float float_down(double d) {
+  if (!(d > 0.0)) return 0.0f;
+  if (d >= static_cast<double>(std::numeric_limits<float>::max())) return std::numeric_limits<float>::max();
+  float f = static_cast<float>(d);
+  if (static_cast<double>(f) > d) f = std::nextafter(f, 0.0f);
+  return f;
+}
+
+/// The occluder's edges and planes at each pixel's worst corner (see the
+/// file's comment); false when an edge is not finite or vanishes (nothing is
+/// drawn then).
+bool setup_fill(const ConvexOccluder& occ, BufferFault fault, double near, int w, int h, FillSetup* s) {
+  const double sgn = fault == BufferFault::OuterCoverage ? 1.0 : -1.0;
+  const double dsgn = fault == BufferFault::NearDepth ? 1.0 : -1.0;
+  s->edges = occ.edges;
+  for (int k = 0; k < occ.edges; ++k) {
+    const PixelAffine& e = occ.edge[k];
+    if (!(std::fabs(e.c) <= kMaxDouble && std::fabs(e.gx) <= kMaxDouble && std::fabs(e.gy) <= kMaxDouble))
+      return false;
+    const double mag = std::fabs(e.c) + std::fabs(e.gx) * w + std::fabs(e.gy) * h;
+    // At pixel (i, j) the corner of least value: the centre (i + 0.5,
+    // j + 0.5) less half the two slopes' magnitudes, less the rounding
+    // margin of the double-precision evaluation.
+    const double c = e.c + 0.5 * (e.gx + e.gy) + sgn * 0.5 * (std::fabs(e.gx) + std::fabs(e.gy)) - 1e-12 * mag - 1e-300;
+    const double n = 1.0 / (std::fabs(c) + std::fabs(e.gx) * w + std::fabs(e.gy) * h);
+    if (!(n > 0.0) || !std::isfinite(n)) return false;
+    s->edge[k].set(c * n, e.gx * n, e.gy * n);
+  }
+  const double scale = occ.slack * near;
+  s->planes = occ.planes;
+  for (int k = 0; k < occ.planes; ++k) {
+    const PixelAffine& p = occ.plane[k];
+    const double c = p.c + 0.5 * (p.gx + p.gy) + dsgn * 0.5 * (std::fabs(p.gx) + std::fabs(p.gy));
+    TiledAffine& t = s->plane[k];
+    t.set(c * scale, p.gx * scale, p.gy * scale);
+    const double big = std::fabs(t.c) > std::fabs(t.gx) ? std::fabs(t.c) : std::fabs(t.gx);
+    s->plane_eps[k] = 8.0 * kEps * (big > std::fabs(t.gy) ? big : std::fabs(t.gy));
+    // A plane whose values reach past the limit anywhere in the image is
+    // caught per tile; its coefficients must be finite for that.
+    if (!std::isfinite(big + std::fabs(t.gy))) return false;
+  }
+  s->cap = occ.w_cap > 0.0 ? float_down(occ.w_cap * scale) : std::numeric_limits<float>::infinity();
+  return true;
+}
+
+/// Sets up the tile at pixel (I0, J0) in `job`; false when the occluder
+/// cannot raise any of its bounds (an edge below zero over the whole tile,
+/// or no plane above `tile_min` there).
+bool tile_job(const FillSetup& s, int I0, int J0, float tile_min, TileJob* job) {
+  job->edges = 0;
+  for (int k = 0; k < s.edges; ++k) {
+    const TiledAffine& e = s.edge[k];
+    const double a = e.at(I0, J0);
+    if (a + e.up < 0.0) return false;
+    const double m = e.allowance(a);
+    if (a + e.down >= m) continue;  // The whole tile passes.
+    job->edge[job->edges++] = e.tile(a, m);
+  }
+  double w_hi = static_cast<double>(s.cap);
+  for (int k = 0; k < s.planes; ++k) {
+    const TiledAffine& p = s.plane[k];
+    const double a = p.at(I0, J0);
+    const double fa = std::fabs(a);
+    if (!(fa <= kPlaneLimit)) return false;
+    // The float allowance and the double evaluation's own rounding.
+    const double m = kFloatAllowance * fa + p.m0 + s.plane_eps[k] * (I0 + J0 + kTileW + kTileH);
+    const double hi = a + p.up;
+    w_hi = hi < w_hi ? hi : w_hi;
+    job->plane[k] = p.tile(a, m);
+  }
+  job->planes = s.planes;
+  job->cap = s.cap;
+  return w_hi > static_cast<double>(tile_min);
+}
+
+}  // namespace
+
+bool OcclusionBuffer::fill(const ConvexOccluder& occ) {
+  if (occ.planes == 0 || occ.i0 > occ.i1 || occ.j0 > occ.j1) return false;
+  FillSetup s;
+  if (!setup_fill(occ, fault, near_, w_, h_, &s)) return false;
+  VOXVIS_ASSERT(occ.i0 >= 0 && occ.i1 < w_ && occ.j0 >= 0 && occ.j1 < h_);
+  const bool avx2 = kernel == BufferKernel::Auto && cpu_has_avx2();
+  const float skip_at = float_down(occ.w_max * near_ * occ.slack);
+  bool any = false;
+  TileJob job;
+  for (int ty = occ.j0 / kTileH; ty <= occ.j1 / kTileH; ++ty) {
+    const int J0 = ty * kTileH;
+    job.r0 = std::max(occ.j0, J0) - J0;
+    job.r1 = std::min(occ.j1, J0 + kTileH - 1) - J0;
+    for (int tx = occ.i0 / kTileW; tx <= occ.i1 / kTileW; ++tx) {
+      const auto t = static_cast<std::size_t>(ty) * static_cast<std::size_t>(tw_) + static_cast<std::size_t>(tx);
+      if (tile_min_[t] >= skip_at) continue;  // Every pixel holds this occluder's largest bound already.
+      const int I0 = tx * kTileW;
+      if (!tile_job(s, I0, J0, tile_min_[t], &job)) continue;
+      job.c0 = std::max(occ.i0, I0) - I0;
+      job.c1 = std::min(occ.i1, I0 + kTileW - 1) - I0;
+      float* tile = px_.data() + t * kTilePixels;
+      const TileResult r = avx2 ? raster_tile_avx2(tile, job) : raster_tile_scalar(tile, job);
+      tile_min_[t] = r.min;
+      tile_max_[t] = r.max;
+      if (r.raised == 0) continue;
+      any = true;
+      written_ += static_cast<std::uint64_t>(r.raised);
+      if (!tile_written_[t]) {
+        tile_written_[t] = 1;
+        written_tiles_.push_back(static_cast<std::uint32_t>(t));
+      }
+    }
+  }
+  return any;
+}
+
+}  // namespace voxvis::detail
