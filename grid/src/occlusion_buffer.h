@@ -2,7 +2,8 @@
 // and per viewer (owned by the worker's Scratch), with a lazily updated grid
 // of tiles over it (Hey et al., "lazy occlusion grid"), filled by a
 // rasterizer of convex occluders (after Intel's Masked Occlusion Culling:
-// edge functions and plane depths, a row of pixels at a time).
+// edge functions and plane depths, a tile of 8x4 pixels at a time with a
+// coverage mask; occlusion_fill.cpp, occlusion_tile.h).
 //
 // Image and depth. A ray of the frame's camera is r(t) = eye + t*d with
 // d = f + x*tan_x*r + y*tan_y*u, x, y in [-1, 1]; since d·f = 1, t is the
@@ -33,7 +34,9 @@
 // the near plane at a depth no greater than the written bound. Shapes are
 // shrunk by a rounding allowance first and bounds lowered by a relative
 // slack and rounded down to float, so a rounding can only drop a pixel or
-// loosen a bound.
+// loosen a bound. (The rasterizer evaluates the pixels in single precision
+// re-centred on each tile, with allowances that keep every value at or
+// below the exact one: occlusion_fill.cpp.)
 //
 // Tests (outer coverage, nearest depth over each pixel). A box is hidden
 // when it lies wholly beyond the near plane and every pixel that its

@@ -51,11 +51,13 @@ constexpr double kPlaneLimit = 1e30;
 
 /// One affine function of the pixel indices, c + gx i + gy j, in double,
 /// with its per-tile offsets in float and what a tile's set-up needs of it.
+/// (No initializers: fill makes one of these per edge of every occluder, and
+/// set() writes every member.)
 struct TiledAffine {
-  double c = 0.0, gx = 0.0, gy = 0.0;
-  double down = 0.0, up = 0.0;  ///< Least and largest change from a tile's first pixel over the tile.
-  double m0 = 0.0;              ///< The allowance but for its part in the value: m = kFloatAllowance |a| + m0.
-  float row[kTileH] = {}, col[kTileW] = {};
+  double c, gx, gy;
+  double down, up;  ///< Least and largest change from a tile's first pixel over the tile.
+  double m0;        ///< The allowance but for its part in the value: m = kFloatAllowance |a| + m0.
+  float row[kTileH], col[kTileW];
 
   void set(double c_, double gx_, double gy_) {
     c = c_, gx = gx_, gy = gy_;
@@ -73,15 +75,16 @@ struct TiledAffine {
   TileAffine tile(double a, double m) const { return TileAffine{static_cast<float>(a - m), row, col}; }
 };
 
-/// What fill derives once per occluder.
+/// What fill derives once per occluder (setup_fill writes the first `edges`
+/// and `planes` entries; the rest stay unwritten and unread).
 struct FillSetup {
-  int edges = 0, planes = 0;
+  int edges, planes;
   TiledAffine edge[ConvexOccluder::kMaxEdges];
   TiledAffine plane[ConvexOccluder::kMaxPlanes];
   /// Per plane, 8 eps of its largest coefficient: the double evaluation at
   /// pixel (i, j) is off by less than plane_eps (1 + i + j).
-  double plane_eps[ConvexOccluder::kMaxPlanes] = {};
-  float cap = 0.0f;
+  double plane_eps[ConvexOccluder::kMaxPlanes];
+  float cap;
 };
 
 /// The largest float not above d (d >= 0).

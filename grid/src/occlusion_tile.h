@@ -25,12 +25,13 @@ inline constexpr int kTilePixels = kTileW * kTileH;
 /// pixel (di, dj), (at + row[dj]) + col[di], summed in that order by both
 /// kernels (no fused operation: the engine is built with -ffp-contract=off).
 struct TileAffine {
-  float at = 0.0f;
-  const float* row = nullptr;  ///< kTileH offsets.
-  const float* col = nullptr;  ///< kTileW offsets.
+  float at;
+  const float* row;  ///< kTileH offsets.
+  const float* col;  ///< kTileW offsets.
 };
 
-/// What one occluder writes into one tile.
+/// What one occluder writes into one tile. Only the first `edges` and
+/// `planes` entries are read.
 struct TileJob {
   static constexpr int kMaxEdges = 32;
   static constexpr int kMaxPlanes = 3;
