@@ -240,7 +240,7 @@ bool OcclusionBuffer::render_disc(const Vec3& centre, const Vec3& normal, double
     // reciprocal's rounding is harmless here.
     const double iz = 1.0 / z;
     const double x = glm::dot(r_, v[k]) * iz * inv_tan_x_, y = glm::dot(u_, v[k]) * iz * inv_tan_y_;
-    x0 = std::fmin(x0, x), x1 = std::fmax(x1, x), y0 = std::fmin(y0, y), y1 = std::fmax(y1, y);
+    x0 = least(x0, x), x1 = greatest(x1, x), y0 = least(y0, y), y1 = greatest(y1, y);
   }
   ConvexOccluder occ;
   if (!std::isfinite(x0 + x1 + y0 + y1)) return false;
@@ -384,9 +384,9 @@ bool OcclusionBuffer::render_box_frame(const Vec3 axes[3], const Vec3& L, const 
   const Vec3 uu(glm::dot(u_, axes[0]), glm::dot(u_, axes[1]), glm::dot(u_, axes[2]));
   const Vec3 size = H - L;
   double zmin = glm::dot(f, L);
-  for (int a = 0; a < 3; ++a) zmin += std::fmin(0.0, f[a] * size[a]);
+  for (int a = 0; a < 3; ++a) zmin += least(0.0, f[a] * size[a]);
   double zmax = glm::dot(f, L);
-  for (int a = 0; a < 3; ++a) zmax += std::fmax(0.0, f[a] * size[a]);
+  for (int a = 0; a < 3; ++a) zmax += greatest(0.0, f[a] * size[a]);
   // Only the part beyond the near plane occludes (the ray caster clips
   // objects there); a box around the eye writes nothing.
   if (!(zmax > near_)) return false;
@@ -399,8 +399,8 @@ bool OcclusionBuffer::render_box_frame(const Vec3 axes[3], const Vec3& L, const 
     const double z = glm::dot(f, p);
     const double iz = 1.0 / z;  // The range only limits the pixels visited.
     const double x = glm::dot(rr, p) * iz * inv_tan_x_, y = glm::dot(uu, p) * iz * inv_tan_y_;
-    x0 = std::fmin(x0, x), x1 = std::fmax(x1, x);
-    y0 = std::fmin(y0, y), y1 = std::fmax(y1, y);
+    x0 = least(x0, x), x1 = greatest(x1, x);
+    y0 = least(y0, y), y1 = greatest(y1, y);
   };
   for (int k = 0; k < 8; ++k) {
     const Vec3 p{(k & 1) ? H.x : L.x, (k & 2) ? H.y : L.y, (k & 4) ? H.z : L.z};
@@ -447,7 +447,7 @@ bool OcclusionBuffer::render_box_frame(const Vec3 axes[3], const Vec3& L, const 
       own_exit[n_in] = n_out;
       entry[n_in++] = linear(e / P);
       exits[n_out++] = linear(e / Q);
-      least_face = std::fmin(least_face, std::fabs(P));
+      least_face = least(least_face, std::fabs(P));
     } else {
       // With the eye on a face's plane a ray heading out through it leaves
       // at once: it must not head out (d_a <= 0 at H = 0, d_a >= 0 at L = 0).
@@ -488,6 +488,10 @@ bool OcclusionBuffer::render_box_frame(const Vec3 axes[3], const Vec3& L, const 
 }
 
 bool OcclusionBuffer::rect_hidden(int i0, int i1, int j0, int j1, double w, OccludeeDepth* depth) const {
+  // Pixels are compared in float against w rounded up: a pixel above that
+  // is above w.
+  const float wf = depth ? 0.0f : round_up(w);
+  const bool avx2 = kernel == BufferKernel::Auto && cpu_has_avx2();
   for (int ty = j0 / kTileH; ty <= j1 / kTileH; ++ty) {
     for (int tx = i0 / kTileW; tx <= i1 / kTileW; ++tx) {
       const auto t = static_cast<std::size_t>(ty) * static_cast<std::size_t>(tw_) + static_cast<std::size_t>(tx);
@@ -501,9 +505,9 @@ bool OcclusionBuffer::rect_hidden(int i0, int i1, int j0, int j1, double w, Occl
         // Every pixel of the tile at or below the occludee's bound: one of
         // them lies in the rectangle, and does not hide it.
         if (!(static_cast<double>(tile_max_[t]) > w)) return false;
-        for (int j = pj0; j <= pj1; ++j)
-          for (int i = pi0; i <= pi1; ++i)
-            if (!(static_cast<double>(tile[(j - J0) * kTileW + (i - I0)]) > w)) return false;
+        const int c0 = pi0 - I0, c1 = pi1 - I0, r0 = pj0 - J0, r1 = pj1 - J0;
+        if (!(avx2 ? tile_above_avx2(tile, c0, c1, r0, r1, wf) : tile_above_scalar(tile, c0, c1, r0, r1, wf)))
+          return false;
         continue;
       }
       // With the occludee's planes: its largest reciprocal depth over the
@@ -602,8 +606,8 @@ bool OcclusionBuffer::hides(const Vec3& rel, const Vec3& size, double tol, bool 
       for (int a = 0; a < 3; ++a)
         if (k >> a & 1) X += r_[a] * size[a], Y += u_[a] * size[a], Z += f_[a] * size[a];
       const double iz = 1.0 / Z;
-      x0 = std::fmin(x0, X * iz), x1 = std::fmax(x1, X * iz);
-      y0 = std::fmin(y0, Y * iz), y1 = std::fmax(y1, Y * iz);
+      x0 = least(x0, X * iz), x1 = greatest(x1, X * iz);
+      y0 = least(y0, Y * iz), y1 = greatest(y1, Y * iz);
     }
   }
   // A corner's position is good to tol (world units) in X, Y and Z: its

@@ -74,6 +74,7 @@
 #include <vector>
 
 #include "frustum.h"
+#include "numeric.h"
 
 namespace voxvis::detail {
 
@@ -142,7 +143,7 @@ struct OccludeeDepth {
   }
   /// The least of w and every plane's largest value over the rectangle.
   double bound(double w, int i0, int i1, int j0, int j1) const {
-    for (int k = 0; k < planes; ++k) w = std::fmin(w, max_over(k, i0, i1, j0, j1));
+    for (int k = 0; k < planes; ++k) w = least(w, max_over(k, i0, i1, j0, j1));
     return w;
   }
 };

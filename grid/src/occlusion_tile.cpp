@@ -51,7 +51,25 @@ TileResult raster_tile_scalar(float* tile, const TileJob& job) {
   return res;
 }
 
+bool tile_above_scalar(const float* tile, int c0, int c1, int r0, int r1, float w) {
+  bool above = true;
+  for (int dj = r0; dj <= r1; ++dj)
+    for (int di = c0; di <= c1; ++di) above &= tile[dj * kTileW + di] > w;
+  return above;
+}
+
 #if VOXVIS_TILE_AVX2
+
+__attribute__((target("avx2"))) bool tile_above_avx2(const float* tile, int c0, int c1, int r0, int r1, float w) {
+  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  const __m256 cols = _mm256_castsi256_ps(
+      _mm256_and_si256(_mm256_cmpgt_epi32(lane, _mm256_set1_epi32(c0 - 1)), _mm256_cmpgt_epi32(_mm256_set1_epi32(c1 + 1), lane)));
+  const __m256 wv = _mm256_set1_ps(w);
+  __m256 below = _mm256_setzero_ps();
+  for (int dj = r0; dj <= r1; ++dj)
+    below = _mm256_or_ps(below, _mm256_cmp_ps(_mm256_loadu_ps(tile + dj * kTileW), wv, _CMP_NGT_UQ));
+  return _mm256_testz_ps(below, cols) != 0;
+}
 
 __attribute__((target("avx2"))) TileResult raster_tile_avx2(float* tile, const TileJob& job) {
   TileResult res;
@@ -105,6 +123,9 @@ bool cpu_has_avx2() {
 #else
 
 TileResult raster_tile_avx2(float* tile, const TileJob& job) { return raster_tile_scalar(tile, job); }
+bool tile_above_avx2(const float* tile, int c0, int c1, int r0, int r1, float w) {
+  return tile_above_scalar(tile, c0, c1, r0, r1, w);
+}
 bool cpu_has_avx2() { return false; }
 
 #endif

@@ -56,6 +56,11 @@ struct TileResult {
 TileResult raster_tile_scalar(float* tile, const TileJob& job);
 /// The same with AVX2; call only where cpu_has_avx2().
 TileResult raster_tile_avx2(float* tile, const TileJob& job);
+/// Whether every pixel of the tile within [c0, c1] x [r0, r1] holds a bound
+/// above w (the occludee test's inner step).
+bool tile_above_scalar(const float* tile, int c0, int c1, int r0, int r1, float w);
+/// The same with AVX2; call only where cpu_has_avx2().
+bool tile_above_avx2(const float* tile, int c0, int c1, int r0, int r1, float w);
 /// Whether this CPU runs AVX2 (and the build has the kernel).
 bool cpu_has_avx2();
 

@@ -157,8 +157,8 @@ bool OcclusionBuffer::below_a_pixel(const Vec3* v, int n) const {
   // triangles seen from above draws a third as many with this test).
   double zmin = std::numeric_limits<double>::infinity(), extent = 0.0;
   for (int k = 0; k < n; ++k) {
-    zmin = std::fmin(zmin, glm::dot(f_, v[k]));
-    for (int j = k + 1; j < n; ++j) extent = std::fmax(extent, max_abs(v[k] - v[j]));
+    zmin = least(zmin, glm::dot(f_, v[k]));
+    for (int j = k + 1; j < n; ++j) extent = greatest(extent, max_abs(v[k] - v[j]));
   }
   if (!(zmin > near_)) return false;  // Crossing the near plane: left to the clipping.
   return 1.7320508075688772 * extent / zmin * (0.5 * w_ * inv_tan_x_) < 1.5;
@@ -185,8 +185,8 @@ bool OcclusionBuffer::fill_polygon(Vec3* q, int nq, const PixelAffine* planes, i
   double r = 0.0, zmin = std::numeric_limits<double>::infinity();
   for (int k = 0; k < nq; ++k) {
     centroid += q[k];
-    r = std::fmax(r, glm::length(q[k]));
-    zmin = std::fmin(zmin, glm::dot(f_, q[k]));
+    r = greatest(r, glm::length(q[k]));
+    zmin = least(zmin, glm::dot(f_, q[k]));
   }
   centroid /= static_cast<double>(nq);
   double h_min = 0.0, side_min = 0.0;
@@ -201,7 +201,7 @@ bool OcclusionBuffer::fill_polygon(Vec3* q, int nq, const PixelAffine* planes, i
     // The range only limits the pixels visited (the edges decide).
     const double iz = 1.0 / glm::dot(f_, q[k]);
     const double x = glm::dot(r_, q[k]) * iz * inv_tan_x_, y = glm::dot(u_, q[k]) * iz * inv_tan_y_;
-    x0 = std::fmin(x0, x), x1 = std::fmax(x1, x), y0 = std::fmin(y0, y), y1 = std::fmax(y1, y);
+    x0 = least(x0, x), x1 = greatest(x1, x), y0 = least(y0, y), y1 = greatest(y1, y);
   }
   ConvexOccluder occ;
   if (!std::isfinite(x0 + x1 + y0 + y1)) return false;

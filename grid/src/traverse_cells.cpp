@@ -182,7 +182,7 @@ bool CellTraversal::skipped(int l, const glm::ivec3& c, bool full, double* zmin_
   // The box's least depth: everything beyond the whole buffer's farthest
   // bound is hidden (the early end: what is left of the frustum is covered).
   double zmin = glm::dot(wf_.f, lo - wf_.eye);
-  for (int a = 0; a < 3; ++a) zmin += std::fmin(0.0, wf_.f[a] * (hi[a] - lo[a]));
+  for (int a = 0; a < 3; ++a) zmin += least(0.0, wf_.f[a] * (hi[a] - lo[a]));
   const double tol = 1e-12 * (max_abs(lo) + max_abs(hi) + max_abs(wf_.eye) + 1.0);
   const bool beyond = beyond_buffer(zmin - 4.0 * tol);
   // In a scene with dynamic objects, a brick holding something is tested

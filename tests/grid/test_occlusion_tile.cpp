@@ -112,6 +112,34 @@ TEST(OcclusionTile, KernelsWriteOnlyTheJobsPixelsAndNeverLowerABound) {
   }
 }
 
+TEST(OcclusionTile, OccludeeKernelsAgreeAndReadOnlyTheirRectangle) {
+  Rng rng(10);
+  int above = 0, trials = 0;
+  for (int trial = 0; trial < 20000; ++trial) {
+    float t[kTilePixels];
+    for (float& v : t) v = static_cast<float>(rng.uniform(0.5, 1.0));
+    const int c0 = rng.uniform_int(0, kTileW - 1), c1 = rng.uniform_int(c0, kTileW - 1);
+    const int r0 = rng.uniform_int(0, kTileH - 1), r1 = rng.uniform_int(r0, kTileH - 1);
+    // Now and then one pixel at or below w: inside the rectangle it decides,
+    // outside it must not.
+    const auto w = static_cast<float>(rng.uniform(0.0, 0.5));
+    int di = -1, dj = -1;
+    if (rng.chance(0.5)) {
+      di = rng.uniform_int(0, kTileW - 1), dj = rng.uniform_int(0, kTileH - 1);
+      t[dj * kTileW + di] = rng.chance(0.5) ? w : 0.0f;
+    }
+    const bool inside = di >= c0 && di <= c1 && dj >= r0 && dj <= r1;
+    const bool s = detail::tile_above_scalar(t, c0, c1, r0, r1, w);
+    ASSERT_EQ(s, !inside) << "trial " << trial;
+    if (detail::cpu_has_avx2()) {
+      ASSERT_EQ(detail::tile_above_avx2(t, c0, c1, r0, r1, w), s) << "trial " << trial;
+    }
+    above += s ? 1 : 0;
+    ++trials;
+  }
+  EXPECT_GT(above, trials / 2);
+}
+
 /// Renders random occluders of every kind into a buffer with the given
 /// kernel, from the same random stream.
 OcclusionBuffer render_random(const Camera& cam, int width, BufferKernel kernel, std::uint64_t seed) {
