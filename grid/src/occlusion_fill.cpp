@@ -11,7 +11,9 @@
 // float), each plane multiplied by near * slack.
 //
 // Per tile, in double precision: each edge's value at the tile's first pixel
-// Et and its least and largest over the tile. An edge below zero over the
+// Et and its least and largest over the tile (four edges to an AVX2
+// instruction, or one at a time in the scalar reference: the same values,
+// the same decisions). An edge below zero over the
 // whole tile leaves the tile alone; one at or above its rounding allowance
 // over the whole tile needs no test per pixel; the others go to the kernel.
 // A tile whose least bound is already at least the occluder's largest, or at
@@ -38,6 +40,11 @@
 #include "occlusion_buffer.h"
 #include "occlusion_tile.h"
 #include "voxvis/assert.h"
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define VOXVIS_FILL_AVX2 1
+#include <immintrin.h>
+#endif
 
 namespace voxvis::detail {
 namespace {
@@ -78,8 +85,15 @@ struct TiledAffine {
 /// What fill derives once per occluder (setup_fill writes the first `edges`
 /// and `planes` entries; the rest stay unwritten and unread).
 struct FillSetup {
+  static constexpr int kLanes = 4;  ///< Doubles to an AVX2 register.
   int edges, planes;
   TiledAffine edge[ConvexOccluder::kMaxEdges];
+  /// The edges again, by field, padded to a multiple of kLanes with edges
+  /// that pass every tile (c = 1, nothing else): what a tile's edge test
+  /// reads, four at a time.
+  int lanes;
+  alignas(32) double ec[ConvexOccluder::kMaxEdges], egx[ConvexOccluder::kMaxEdges], egy[ConvexOccluder::kMaxEdges];
+  alignas(32) double eup[ConvexOccluder::kMaxEdges], edown[ConvexOccluder::kMaxEdges], em0[ConvexOccluder::kMaxEdges];
   TiledAffine plane[ConvexOccluder::kMaxPlanes];
   /// Per plane, 8 eps of its largest coefficient: the double evaluation at
   /// pixel (i, j) is off by less than plane_eps (1 + i + j).
@@ -114,8 +128,12 @@ bool setup_fill(const ConvexOccluder& occ, BufferFault fault, double near, int w
     const double c = e.c + 0.5 * (e.gx + e.gy) + sgn * 0.5 * (std::fabs(e.gx) + std::fabs(e.gy)) - 1e-12 * mag - 1e-300;
     const double n = 1.0 / (std::fabs(c) + std::fabs(e.gx) * w + std::fabs(e.gy) * h);
     if (!(n > 0.0) || !std::isfinite(n)) return false;
-    s->edge[k].set(c * n, e.gx * n, e.gy * n);
+    TiledAffine& t = s->edge[k];
+    t.set(c * n, e.gx * n, e.gy * n);
+    s->ec[k] = t.c, s->egx[k] = t.gx, s->egy[k] = t.gy, s->eup[k] = t.up, s->edown[k] = t.down, s->em0[k] = t.m0;
   }
+  s->lanes = (occ.edges + FillSetup::kLanes - 1) / FillSetup::kLanes * FillSetup::kLanes;
+  for (int k = occ.edges; k < s->lanes; ++k) s->ec[k] = 1.0, s->egx[k] = s->egy[k] = s->eup[k] = s->edown[k] = s->em0[k] = 0.0;
   const double scale = occ.slack * near;
   s->planes = occ.planes;
   for (int k = 0; k < occ.planes; ++k) {
@@ -133,33 +151,75 @@ bool setup_fill(const ConvexOccluder& occ, BufferFault fault, double near, int w
   return true;
 }
 
+/// The edges at the tile whose first pixel is (I0, J0): each edge's value
+/// there into a[k], and a bit in *partial for each edge that does not pass
+/// the whole tile; false when an edge is below zero over the whole tile.
+/// Both versions compute the same values ((c + gx I0) + gy J0, as
+/// TiledAffine::at) and decide alike.
+bool edge_test_scalar(const FillSetup& s, int I0, int J0, double* a, std::uint32_t* partial) {
+  std::uint32_t part = 0;
+  for (int k = 0; k < s.edges; ++k) {
+    const double v = s.ec[k] + s.egx[k] * I0 + s.egy[k] * J0;
+    if (v + s.eup[k] < 0.0) return false;
+    if (!(v + s.edown[k] >= kFloatAllowance * std::fabs(v) + s.em0[k])) part |= 1u << k;
+    a[k] = v;
+  }
+  *partial = part;
+  return true;
+}
+
+#if VOXVIS_FILL_AVX2
+__attribute__((target("avx2"))) bool edge_test_avx2(const FillSetup& s, int I0, int J0, double* a,
+                                                   std::uint32_t* partial) {
+  const __m256d i0 = _mm256_set1_pd(I0), j0 = _mm256_set1_pd(J0), zero = _mm256_setzero_pd();
+  const __m256d allow = _mm256_set1_pd(kFloatAllowance), sign = _mm256_set1_pd(-0.0);
+  int below = 0;
+  std::uint32_t part = 0;
+  for (int k = 0; k < s.lanes; k += FillSetup::kLanes) {
+    const __m256d v = _mm256_add_pd(_mm256_add_pd(_mm256_load_pd(s.ec + k), _mm256_mul_pd(_mm256_load_pd(s.egx + k), i0)),
+                                    _mm256_mul_pd(_mm256_load_pd(s.egy + k), j0));
+    _mm256_storeu_pd(a + k, v);
+    below |= _mm256_movemask_pd(_mm256_cmp_pd(_mm256_add_pd(v, _mm256_load_pd(s.eup + k)), zero, _CMP_LT_OQ));
+    const __m256d m = _mm256_add_pd(_mm256_mul_pd(allow, _mm256_andnot_pd(sign, v)), _mm256_load_pd(s.em0 + k));
+    const int full = _mm256_movemask_pd(_mm256_cmp_pd(_mm256_add_pd(v, _mm256_load_pd(s.edown + k)), m, _CMP_GE_OQ));
+    part |= static_cast<std::uint32_t>(~full & 0xF) << k;
+  }
+  if (below) return false;
+  *partial = part;
+  return true;
+}
+#else
+bool edge_test_avx2(const FillSetup& s, int I0, int J0, double* a, std::uint32_t* partial) {
+  return edge_test_scalar(s, I0, J0, a, partial);
+}
+#endif
+
 /// Sets up the tile at pixel (I0, J0) in `job`; false when the occluder
 /// cannot raise any of its bounds (an edge below zero over the whole tile,
 /// or no plane above `tile_min` there).
-bool tile_job(const FillSetup& s, int I0, int J0, float tile_min, TileJob* job) {
+bool tile_job(const FillSetup& s, int I0, int J0, float tile_min, bool avx2, TileJob* job) {
+  double ea[ConvexOccluder::kMaxEdges];
+  std::uint32_t partial;
+  if (!(avx2 ? edge_test_avx2(s, I0, J0, ea, &partial) : edge_test_scalar(s, I0, J0, ea, &partial))) return false;
   job->edges = 0;
-  for (int k = 0; k < s.edges; ++k) {
+  for (; partial != 0; partial &= partial - 1) {
+    const int k = __builtin_ctz(partial);
     const TiledAffine& e = s.edge[k];
-    const double a = e.at(I0, J0);
-    if (a + e.up < 0.0) return false;
-    const double m = e.allowance(a);
-    if (a + e.down >= m) continue;  // The whole tile passes.
-    job->edge[job->edges++] = e.tile(a, m);
+    job->edge[job->edges++] = e.tile(ea[k], e.allowance(ea[k]));
   }
   double w_hi = static_cast<double>(s.cap);
+  const auto spread = static_cast<double>(I0 + J0 + kTileW + kTileH);
   for (int k = 0; k < s.planes; ++k) {
     const TiledAffine& p = s.plane[k];
     const double a = p.at(I0, J0);
     const double fa = std::fabs(a);
     if (!(fa <= kPlaneLimit)) return false;
     // The float allowance and the double evaluation's own rounding.
-    const double m = kFloatAllowance * fa + p.m0 + s.plane_eps[k] * (I0 + J0 + kTileW + kTileH);
+    const double m = kFloatAllowance * fa + p.m0 + s.plane_eps[k] * spread;
     const double hi = a + p.up;
     w_hi = hi < w_hi ? hi : w_hi;
-    job->plane[k] = p.tile(a, m);
+    job->plane[k].at = static_cast<float>(a - m);
   }
-  job->planes = s.planes;
-  job->cap = s.cap;
   return w_hi > static_cast<double>(tile_min);
 }
 
@@ -174,6 +234,9 @@ bool OcclusionBuffer::fill(const ConvexOccluder& occ) {
   const float skip_at = float_down(occ.w_max * near_ * occ.slack);
   bool any = false;
   TileJob job;
+  job.planes = s.planes;
+  job.cap = s.cap;
+  for (int k = 0; k < s.planes; ++k) job.plane[k] = TileAffine{0.0f, s.plane[k].row, s.plane[k].col};
   for (int ty = occ.j0 / kTileH; ty <= occ.j1 / kTileH; ++ty) {
     const int J0 = ty * kTileH;
     job.r0 = std::max(occ.j0, J0) - J0;
@@ -182,7 +245,7 @@ bool OcclusionBuffer::fill(const ConvexOccluder& occ) {
       const auto t = static_cast<std::size_t>(ty) * static_cast<std::size_t>(tw_) + static_cast<std::size_t>(tx);
       if (tile_min_[t] >= skip_at) continue;  // Every pixel holds this occluder's largest bound already.
       const int I0 = tx * kTileW;
-      if (!tile_job(s, I0, J0, tile_min_[t], &job)) continue;
+      if (!tile_job(s, I0, J0, tile_min_[t], avx2, &job)) continue;
       job.c0 = std::max(occ.i0, I0) - I0;
       job.c1 = std::min(occ.i1, I0 + kTileW - 1) - I0;
       float* tile = px_.data() + t * kTilePixels;

@@ -169,6 +169,8 @@ OcclusionBuffer render_random(const Camera& cam, int width, BufferKernel kernel,
   return ob;
 }
 
+// The whole rasterizer both ways: the per-tile edge test (four edges at a
+// time) and the tile kernel, AVX2 against the scalar reference.
 TEST(OcclusionTile, ScalarAndAvx2BuffersAgreeBitForBit) {
   if (!detail::cpu_has_avx2()) GTEST_SKIP() << "this CPU has no AVX2: only the scalar kernel runs";
   Rng rng(9);
