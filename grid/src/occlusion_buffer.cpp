@@ -159,15 +159,18 @@ float OcclusionBuffer::pixel(int i, int j) const {
 
 bool OcclusionBuffer::rect(double x0, double x1, double y0, double y1, int* i0, int* i1, int* j0,
                            int* j1) const {
-  // Image coordinate x maps to pixel column (x + 1) * W / 2.
+  // Image coordinate x maps to pixel column (x + 1) * W / 2; the pixel of
+  // a column a is floor(a). Checked first (a NaN fails), then clamped to
+  // the image, where a conversion to int is the floor (without a library
+  // call for std::floor at -O3 on the baseline).
   const double sw = 0.5 * w_, sh = 0.5 * h_;
-  const double a0 = std::floor((x0 + 1.0) * sw), a1 = std::floor((x1 + 1.0) * sw);
-  const double b0 = std::floor((y0 + 1.0) * sh), b1 = std::floor((y1 + 1.0) * sh);
-  if (!(a1 >= 0.0) || !(a0 <= w_ - 1.0) || !(b1 >= 0.0) || !(b0 <= h_ - 1.0)) return false;
-  *i0 = static_cast<int>(std::max(a0, 0.0));
-  *i1 = static_cast<int>(std::min(a1, w_ - 1.0));
-  *j0 = static_cast<int>(std::max(b0, 0.0));
-  *j1 = static_cast<int>(std::min(b1, h_ - 1.0));
+  const double a0 = (x0 + 1.0) * sw, a1 = (x1 + 1.0) * sw;
+  const double b0 = (y0 + 1.0) * sh, b1 = (y1 + 1.0) * sh;
+  if (!(a1 >= 0.0) || !(a0 < w_) || !(b1 >= 0.0) || !(b0 < h_)) return false;
+  *i0 = a0 > 0.0 ? static_cast<int>(a0) : 0;
+  *i1 = a1 < w_ - 1.0 ? static_cast<int>(a1) : w_ - 1;
+  *j0 = b0 > 0.0 ? static_cast<int>(b0) : 0;
+  *j1 = b1 < h_ - 1.0 ? static_cast<int>(b1) : h_ - 1;
   return true;
 }
 
