@@ -69,6 +69,13 @@ float round_up(double d) {
   return f;
 }
 
+/// The largest of a tile's 32 bounds.
+float tile_largest(const float* tile) {
+  float lo, hi;
+  least_and_largest(tile, kTilePixels, &lo, &hi);
+  return hi;
+}
+
 }  // namespace
 
 void OcclusionBuffer::begin(const WorldFrustum& wf, int width) {
@@ -103,7 +110,7 @@ void OcclusionBuffer::begin(const WorldFrustum& wf, int width) {
       for (int i = 0; i < w_; ++i) px_[at(i, j)] = 0.0f;
     tile_min_.assign(tiles, 0.0f);
     tile_max_.resize(tiles);
-    for (std::size_t t = 0; t < tiles; ++t) tile_max_[t] = tile_bound(px_.data() + t * kTilePixels, false);
+    for (std::size_t t = 0; t < tiles; ++t) tile_max_[t] = tile_largest(px_.data() + t * kTilePixels);
     tile_written_.assign(tiles, 0);
     written_tiles_.clear();
   } else {
@@ -141,15 +148,9 @@ void OcclusionBuffer::clear_written() {
     }
     const int ni = std::min(kTileW, w_ - I0), nj = std::min(kTileH, h_ - J0);
     for (int dj = 0; dj < nj; ++dj) std::fill(tile + dj * kTileW, tile + dj * kTileW + ni, 0.0f);
-    tile_max_[t] = tile_bound(tile, false);
+    tile_max_[t] = tile_largest(tile);
   }
   written_tiles_.clear();
-}
-
-float OcclusionBuffer::tile_bound(const float* tile, bool least) {
-  float m = tile[0];
-  for (int k = 1; k < kTilePixels; ++k) m = least ? std::min(m, tile[k]) : std::max(m, tile[k]);
-  return m;
 }
 
 float OcclusionBuffer::pixel(int i, int j) const {

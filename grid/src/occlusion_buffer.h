@@ -283,8 +283,6 @@ class OcclusionBuffer {
   std::size_t at(int i, int j) const;
   /// Zeroes the pixels the last frame wrote and their tiles' bounds.
   void clear_written();
-  /// The least (else the largest) of a tile's 32 bounds.
-  static float tile_bound(const float* tile, bool least);
 
   WorldFrustum view_;
   Vec3 eye_{0.0}, f_{0.0}, r_{0.0}, u_{0.0};

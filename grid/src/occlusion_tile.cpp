@@ -3,8 +3,6 @@
 // write the same bits; the tests run both on the same occluders and compare.
 #include "occlusion_tile.h"
 
-#include <algorithm>
-
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #define VOXVIS_TILE_AVX2 1
 #include <immintrin.h>
@@ -42,12 +40,7 @@ TileResult raster_tile_scalar(float* tile, const TileJob& job) {
       }
     }
   }
-  res.min = tile[0];
-  res.max = tile[0];
-  for (int k = 1; k < kTilePixels; ++k) {
-    res.min = std::min(res.min, tile[k]);
-    res.max = std::max(res.max, tile[k]);
-  }
+  least_and_largest(tile, kTilePixels, &res.min, &res.max);
   return res;
 }
 
@@ -106,12 +99,9 @@ __attribute__((target("avx2"))) TileResult raster_tile_avx2(float* tile, const T
   alignas(32) float l[kTileW], h[kTileW];
   _mm256_store_ps(l, lo);
   _mm256_store_ps(h, hi);
-  res.min = l[0];
-  res.max = h[0];
-  for (int k = 1; k < kTileW; ++k) {
-    res.min = std::min(res.min, l[k]);
-    res.max = std::max(res.max, h[k]);
-  }
+  float unused;
+  least_and_largest(l, kTileW, &res.min, &unused);
+  least_and_largest(h, kTileW, &unused, &res.max);
   return res;
 }
 

@@ -50,6 +50,17 @@ struct TileResult {
   float min = 0.0f, max = 0.0f;
 };
 
+/// The least and the largest of v[0..n), n >= 1, into *lo and *hi.
+inline void least_and_largest(const float* v, int n, float* lo, float* hi) {
+  float l = v[0], h = v[0];
+  for (int k = 1; k < n; ++k) {
+    l = v[k] < l ? v[k] : l;
+    h = v[k] > h ? v[k] : h;
+  }
+  *lo = l;
+  *hi = h;
+}
+
 /// Raises each pixel of the tile within [c0, c1] x [r0, r1] whose edges are
 /// all >= 0 to the least of the planes and the cap (never below 0) where
 /// that is larger. A NaN raises nothing.
