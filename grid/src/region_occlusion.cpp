@@ -9,6 +9,7 @@
 #include <glm/geometric.hpp>
 
 #include "numeric.h"
+#include "voxvis/assert.h"
 
 namespace voxvis::detail {
 
@@ -115,6 +116,8 @@ void fill_region_buckets(RegionOccluders* out) {
 RegionOcclusion::RegionOcclusion(const RegionOccluders& occ, const RegionEyes& eyes, std::vector<std::uint32_t>& mark,
                                  std::uint32_t& stamp)
     : occ_(occ), eyes_(eyes), mark_(mark), stamp_(stamp) {
+  // Every occluder has its mark (the frame sizes the marks to the scene's).
+  VOXVIS_ASSERT(mark_.size() >= occ_.occ.size());
   eye_mag_ = std::max(max_abs(eyes.lo), max_abs(eyes.hi));
   const Vec3 centre = 0.5 * (eyes.lo + eyes.hi), half = 0.5 * (eyes.hi - eyes.lo);
   near_plane_ = glm::dot(eyes.f, centre) + glm::dot(glm::abs(eyes.f), half) + eyes.near;
@@ -192,6 +195,7 @@ bool RegionOcclusion::hides_whole(const Vec3& elo, const Vec3& ehi, const Vec3& 
     last = bucket;
     for (std::uint32_t i = occ_.offsets[bucket]; i < occ_.offsets[bucket + 1]; ++i) {
       const std::uint32_t id = occ_.ids[i];
+      VOXVIS_ASSERT(id < occ_.occ.size());
       if (mark_[id] == stamp_) continue;
       mark_[id] = stamp_;
       if (blocks(occ_.occ[id], ce, cx, e, x, mag, centre_met)) {

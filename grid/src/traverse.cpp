@@ -30,6 +30,7 @@
 
 #include "numeric.h"
 #include "traverse.h"
+#include "voxvis/assert.h"
 #include "voxvis/inspect.h"
 
 namespace voxvis {
@@ -84,6 +85,9 @@ class Traversal {
   Traversal(const Scene::Impl& s, Scratch::Impl& w, FrameStats& st, const detail::FrameGeometry& g,
             detail::Collector& col)
       : s_(s), w_(w), st_(st), col_(col), tag_(static_cast<std::uint32_t>(w.stamp_tag << 2)) {
+    // A tag of six bits above the status's two, never 0 (a cleared
+    // stamp), over a stamp per voxel of the grid (begin_voxels).
+    VOXVIS_ASSERT(w.stamp_tag >= 1 && w.stamp_tag < 64 && w.stamp.size() >= s.vflags.size());
     for (int a = 0; a < 3; ++a) {
       E_[a] = g.E[a];
       glo_[a] = g.glo[a];
@@ -475,6 +479,7 @@ void Traversal::visit_row(int face, int a, int b, int d, std::int64_t la, std::i
                                     static_cast<double>(v[2]))))
       continue;
     const std::int64_t idx = base + vb * sb;
+    VOXVIS_ASSERT(idx >= 0 && static_cast<std::size_t>(idx) < s_.vflags.size());
     std::uint8_t& stamp = stamps[static_cast<std::size_t>(idx)];
     if ((stamp & ~3u) == tag_) continue;  // Reached through another face already.
     ++st_.voxels_visited;

@@ -276,6 +276,17 @@ long number_before(const std::string& text, const std::string& marker);
 // ---------------------------------------------------------------------------
 // The server process
 
+/// Server arguments for tests that compare its answers with `voxvis replay`
+/// counter for counter, `more` first: no periodic position save. A save
+/// reads the scene under its lock, and a frame that ends while any reader
+/// holds it leaves its queued TBV work to the next frame (conservative;
+/// docs/design.md, *Thread-safety*, step 4), which would shift counters by a
+/// frame. Positions are still saved when the server stops.
+inline std::vector<std::string> replay_exact_args(std::vector<std::string> more = {}) {
+  more.insert(more.end(), {"--save-period", "1e6"});
+  return more;
+}
+
 class ServerProcess {
  public:
   /// `extra_args` follow --listen, --port-file and --data-dir.

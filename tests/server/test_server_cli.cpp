@@ -17,7 +17,7 @@ namespace fs = std::filesystem;
 
 TEST(ServerCli, ViewMatchesReplay) {
   const std::string examples = std::string(VOXVIS_SOURCE_DIR) + "/examples/paper";
-  ServerProcess server;
+  ServerProcess server(replay_exact_args());
   // Two scenes from the file, one per run (a run moves objects and advances
   // the scene's clock): one named by its file's stem, one by --scene ID=FILE.
   const std::string scene_full = server.path("paper_full.json");
@@ -76,7 +76,7 @@ TEST(ServerCli, TickMatchesReplayForItsFirstViewer) {
   // `voxvis tick`: viewer 0 walks the recording as `replay` does (with its
   // moves, in both encodings); with three viewers each has its own file.
   const std::string examples = std::string(VOXVIS_SOURCE_DIR) + "/examples/paper";
-  ServerProcess server;
+  ServerProcess server(replay_exact_args());
   const std::vector<std::string> all_frames = lines_of(slurp(examples + "/frames.jsonl"));
   ASSERT_GE(all_frames.size(), 30u);
   std::string frames_text;
@@ -144,7 +144,7 @@ TEST(ServerCli, TickMatchesReplayForItsFirstViewer) {
 // simulation stream once the file has moved something, so frames without
 // moves, long after the last one, still match `replay`.
 TEST(ServerCli, ViewMatchesReplayWhenMovesStop) {
-  ServerProcess server;
+  ServerProcess server(replay_exact_args());
   const std::string scene = server.path("wall.json");
   spit(scene, wall_scene_json());
   // One move in the first frame, then 4 s of frames without moves: the
@@ -187,8 +187,7 @@ TEST(ServerCli, OcclusionBufferMatchesReplayForEveryScene) {
   std::string frames_text;
   for (std::size_t i = 0; i < 40; ++i) frames_text += all_frames[i] + "\n";
   ASSERT_NE(frames_text.find("\"moves\""), std::string::npos);
-  ServerProcess server({"--occlusion-buffer", "64", "--scene",
-                        "paper_file=" + examples + "/scene.json"});
+  ServerProcess server(replay_exact_args({"--occlusion-buffer", "64", "--scene", "paper_file=" + examples + "/scene.json"}));
   const std::string frames = server.path("frames.jsonl");
   spit(frames, frames_text);
 

@@ -15,7 +15,7 @@ namespace voxvis::servertest {
 namespace {
 
 TEST(ServerRegions, ViewTickAndPythonAnswerAsReplay) {
-  ServerProcess server;
+  ServerProcess server(replay_exact_args());
   const std::string scene = server.path("arena.json"), frames = server.path("arena.jsonl");
   ProcessResult r = run_program({VOXVIS_CLI, "generate", "--preset", "arena", "--size", "2", "--dynamic", "8",
                                  "--frames", "24", "--scene-out", scene, "--frames-out", frames},
