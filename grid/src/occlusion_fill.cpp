@@ -196,7 +196,8 @@ bool edge_test_avx2(const FillSetup& s, int I0, int J0, double* a, std::uint32_t
 
 /// Sets up the tile at pixel (I0, J0) in `job`; false when the occluder
 /// cannot raise any of its bounds (an edge below zero over the whole tile,
-/// or no plane above `tile_min` there).
+/// or no plane above `tile_min` there) or a plane's values there could
+/// overflow a float (skipped: writes less).
 bool tile_job(const FillSetup& s, int I0, int J0, float tile_min, bool avx2, TileJob* job) {
   double ea[ConvexOccluder::kMaxEdges];
   std::uint32_t partial;
