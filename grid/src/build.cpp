@@ -5,7 +5,7 @@
 // (opaque boxes, meshes' quads and interiors), the cell traversal's
 // summaries and the dynamic objects' state, each a named phase below, each
 // charging its memory as it goes (build_parts.h). The rest of a scene's life
-// (moves, TBVs) is in scene.cpp.
+// (moves) is in scene.cpp, the TBVs' in scene_tbv.cpp.
 #include <algorithm>
 #include <array>
 #include <bit>

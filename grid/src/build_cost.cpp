@@ -247,7 +247,7 @@ std::uint64_t grid_bytes(const Scene::Impl& s) {
   // anything in it was seen (8).
   //
   // The dynamic lists: a cell drops its stale entries only once they are
-  // 16 more than twice its live ones (scene.cpp, brick_add), and a list
+  // 16 more than twice its live ones (scene_tbv.cpp, brick_add), and a list
   // grows by doubling, so a cell that ever held one entry keeps up to 16
   // (128 bytes), and one that held L >= 2 at once up to 192 + 32 L bytes:
   // 128 bytes a dynamic cell (bricks and coarser) and 64 a dynamic entry

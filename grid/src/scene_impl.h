@@ -523,7 +523,7 @@ struct Scene::Impl {
   /// Puts object `slot` under a TBV from `now`: `box` if given (computed
   /// for it at this renewal), else tbv_box's.
   void make_tbv(std::uint32_t slot, double now, const TbvBox* box = nullptr);
-  /// Gives an expired TBV a new validity period (see scene.cpp).
+  /// Gives an expired TBV a new validity period (see scene_tbv.cpp).
   void renew_tbv(std::uint32_t slot, double now);
   /// The TBV box for the object's current centre and a period starting now;
   /// returns the (jittered) period. `cut` (if given) says whether seen space
