@@ -49,6 +49,21 @@ constexpr std::uint32_t kLive = 1;     ///< In view, not blocking.
 constexpr std::uint32_t kBlocked = 2;  ///< Proven hidden.
 constexpr std::uint32_t kOpaque = 3;   ///< In view and opaque beyond the near plane: it blocks.
 
+/// The six faces of a shell, numbered 2a + side: a face is normal to axis
+/// a (face / 2) on the + side (face % 2 == 0) or the - side; b and d are the
+/// other two axes in increasing order. The one rule for every loop over
+/// faces or axes below.
+struct FaceAxes {
+  int a, b, d;
+};
+constexpr FaceAxes face_axes(int face) {
+  const int a = face >> 1;
+  return {a, a == 0 ? 1 : 0, a == 2 ? 1 : 2};
+}
+constexpr FaceAxes axis_axes(int a) { return face_axes(2 * a); }
+/// The layer of shell m that a face lies in, on its axis.
+constexpr std::int64_t face_layer(int face, std::int64_t m) { return (face & 1) ? -m : m; }
+
 /// Inclusive box of local voxel coordinates.
 struct IBox {
   std::int64_t lo[3];
@@ -229,7 +244,7 @@ bool Traversal::occluded_at(const std::int64_t v[3], std::int64_t j) const {
     const double va = static_cast<double>(v[a]);
     const double t0 = (c - ea) / (va - ea);
     const double t1 = (c - ea) / (va + 1.0 - ea);
-    const int b = (a + 1) % 3, d = (a + 2) % 3;
+    const auto [_, b, d] = axis_axes(a);
     const Range rb = required(b, v[b], t0, t1, j);
     const Range rd = required(d, v[d], t0, t1, j);
     if (rb.empty() || rd.empty()) continue;
@@ -391,14 +406,13 @@ void Traversal::collect(std::int64_t idx, const std::int64_t v[3], std::uint8_t 
 
 void Traversal::fill_table(ExitTable& t, int face, std::int64_t la, std::int64_t j,
                            const Range& rb, const Range& rd) const {
-  const int a = face >> 1;
-  const int b = a == 0 ? 1 : 0, d = a == 2 ? 1 : 2;
+  const auto [a, b, d] = face_axes(face);
   const double c = (face & 1) ? static_cast<double>(-j) : static_cast<double>(j + 1);
   const double ea = lf_.e[a];
   const double t0 = (c - ea) / (static_cast<double>(la) - ea);
   const double t1 = (c - ea) / (static_cast<double>(la) + 1.0 - ea);
   t.j = j;
-  t.ua = (face & 1) ? -j : j;
+  t.ua = face_layer(face, j);
   t.b0 = rb.lo;
   t.d0 = rd.lo;
   t.sb = stride_[b];
@@ -552,9 +566,8 @@ void Traversal::run() {
     // The pyramid's cut with each face layer of shell m, minus the grid when
     // only_outside: empty space that never blocks.
     for (int face = 0; face < 6; ++face) {
-      const int a = face >> 1;
-      const std::int64_t la = (face & 1) ? -m : m;
-      const int b = a == 0 ? 1 : 0, d = a == 2 ? 1 : 2;
+      const auto [a, b, d] = face_axes(face);
+      const std::int64_t la = face_layer(face, m);
       bool any_b = false, any_d = false;
       Range rb = frustum_rect_axis(a, la, b, &any_b);
       Range rd = frustum_rect_axis(a, la, d, &any_d);
@@ -597,11 +610,10 @@ void Traversal::run() {
     if (!eye_inside_) add_face_rects(m, next, true);
     const std::int64_t R = m - 1 <= 1 ? 4 : 3;  // Exit voxels lie within R of v (docs/design.md).
     for (int face = 0; face < 6; ++face) {
-      const int a = face >> 1;
-      const std::int64_t la = (face & 1) ? -m : m;
+      const auto [a, b, d] = face_axes(face);
+      const std::int64_t la = face_layer(face, m);
       if (la < glo_[a] || la > ghi_[a]) continue;
       if (m == 0 && face > 0) break;
-      const int b = a == 0 ? 1 : 0, d = a == 2 ? 1 : 2;
       bool any_b = false, any_d = false;
       Range rb = frustum_rect_axis(a, la, b, &any_b);
       Range rd = frustum_rect_axis(a, la, d, &any_d);
