@@ -1,6 +1,7 @@
 // occlusion_buffer.h — a conservative depth buffer in image space, per frame
-// and per viewer (owned by the worker's Scratch), with a lazily updated grid
-// of tiles over it (Hey et al., "lazy occlusion grid"), filled by a
+// and per viewer (owned by the worker's Scratch), stored by tiles of 8x4
+// pixels, each tile's least and largest bound kept as it is written (the
+// coarse level of Hey et al.'s occlusion grid, kept eagerly), filled by a
 // rasterizer of convex occluders (after Intel's Masked Occlusion Culling:
 // edge functions and plane depths, a tile of 8x4 pixels at a time with a
 // coverage mask; occlusion_fill.cpp, occlusion_tile.h).

@@ -3,7 +3,7 @@
 // visible into the worker's Scratch (w.pvs, and the TBVs to reveal in
 // w.deferred), record the voxels they saw, and count their work in `st`.
 //
-//  * traverse_voxels (traverse.cpp): the paper's chess-metric shells of
+//  * traverse_voxels (traverse_shells.cpp): the paper's chess-metric shells of
 //    voxels front to back, with occluder fusion in object space; the
 //    traversal with the occlusion buffer off.
 //  * traverse_cells (traverse_cells.cpp): the cell pyramid front to back,

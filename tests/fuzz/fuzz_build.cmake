@@ -1,7 +1,8 @@
 # fuzz_build.cmake — the VOXVIS_FUZZ configuration, included by the top-level
-# CMakeLists.txt in place of the rest of the project: voxvis::grid, whose
-# parsers the targets fuzz, voxvis::import, and the targets of tests/fuzz. Nothing else is
-# configured, so neither gRPC nor the renderer is looked for or built.
+# CMakeLists.txt in place of the rest of the project: voxvis::grid and
+# voxvis::formats, whose parsers the targets fuzz, voxvis::import, and the
+# targets of tests/fuzz. Nothing else is configured, so neither gRPC nor the
+# renderer is looked for or built.
 if(NOT CMAKE_CXX_COMPILER_ID STREQUAL "Clang")
   message(FATAL_ERROR
     "VOXVIS_FUZZ needs clang (libFuzzer comes with clang), but the C++ compiler is "

@@ -1,21 +1,35 @@
 // voxvis/scene.h — the visibility engine.
 //
-// Design (Batagelo & Wu, "Dynamic scene occlusion culling using a regular
-// grid", sections 3-5; TBVs after Sudarsky & Gotsman):
-//  * A Scene owns the shared grid: static opaque bits and per-voxel id lists
-//    built once (paper 4.5), dynamic objects' ids and opacity kept up to date
-//    incrementally as they move, and temporal bounding volumes (TBVs) for
-//    dynamic objects hidden from every viewer.
-//  * A frame walks the frustum's voxels in chess-metric shells around the eye's
-//    voxel, front to back. Occlusion propagates shell by shell: every segment
-//    from the eye to a point of shell k+1 leaves the cube of shells 0..k
-//    through shell k, so a voxel is occluded when every shell-k voxel its
-//    central projection can cross is opaque or occluded. This fuses occluders
-//    in object space without cap polygons, and is conservative by
-//    construction (see docs/design.md for the argument).
-//  * Each viewer keeps only its last PVS in the scene. The per-frame layers
-//    (occluded/visited status, PVS marks) live in a Scratch that each worker
-//    thread owns and reuses across viewers and scenes.
+// A Scene owns the shared grid of one scene: static objects' ids and
+// opacity per voxel, built once (Batagelo & Wu, "Dynamic scene occlusion
+// culling using a regular grid", 4.5), summarized in a pyramid of cells
+// (cells.h); dynamic objects' ids and opacity kept up to date as they move
+// (apply_moves); and temporal bounding volumes (TBVs, after Sudarsky &
+// Gotsman) for dynamic objects hidden from every viewer, so that a hidden
+// mover costs nothing per frame until its TBV may show or expires
+// (grid/src/scene_tbv.cpp).
+//
+// A frame (Scene::frame; its phases in grid/src/frame.cpp) answers one
+// viewer's camera with its potentially visible set (PVS). By default
+// (SceneOptions::occlusion_buffer > 0) it walks the cell pyramid front to
+// back (grid/src/traverse_cells.cpp): a cell is entered only when it holds
+// something, meets the frustum and is not proven hidden by a conservative
+// occlusion buffer (grid/src/occlusion_buffer.h: every pixel holds a lower
+// bound on the reciprocal depth of the first hit of every ray through it;
+// its tile rasterizer in occlusion_fill.cpp). The objects of a cell entered
+// are tested against the frustum and the buffer, and drawn into it when
+// they may be visible (collect.h). With the buffer off, the frame walks
+// the frustum's voxels in the paper's chess-metric shells around the eye
+// (grid/src/traverse_shells.cpp): a voxel is occluded when every voxel of the
+// shell before that its central projection can cross blocks, which fuses
+// occluders in object space. Both are conservative by construction
+// (docs/design.md gives the arguments): a visible object is never missing.
+// A frame whose camera is a region (an eye box, every direction, a time
+// horizon: Camera's region fields) answers for all of it (region.h).
+//
+// Each viewer keeps only its last PVS in the scene. The per-frame layers
+// (visited status, PVS marks, the buffer) live in a Scratch that each
+// worker thread owns and reuses across viewers and scenes.
 //
 // Thread-safety: a Scene synchronizes itself with a reader-writer lock.
 // Frames of different viewers run in parallel: a frame changes the scene

@@ -43,13 +43,6 @@
 
 namespace voxvis {
 
-std::string number_text(double v) {
-  if (!std::isfinite(v)) return std::isnan(v) ? "nan" : (v > 0 ? "inf" : "-inf");
-  char buf[64];
-  const auto r = std::to_chars(buf, buf + sizeof buf, v);
-  return std::string(buf, r.ptr);
-}
-
 std::string FormatError::str() const {
   std::string out;
   if (!source.empty()) {

@@ -1,4 +1,4 @@
-// traverse.cpp — the traversal with the occlusion buffer off: the paper's
+// traverse_shells.cpp — the traversal with the occlusion buffer off: the paper's
 // chess-metric shells of voxels front to back, with shell-by-shell occlusion
 // (traverse.h; the frame around it is frame.cpp).
 //
