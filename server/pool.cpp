@@ -113,7 +113,29 @@ void Strand::post(Job job) {
   pool_.submit(client_, [self = shared_from_this()](Scratch& s) { self->run_some(s); });
 }
 
+namespace {
+
+/// The strand whose jobs this thread is running, if any (Strand::runs_here).
+thread_local const Strand* running_strand = nullptr;
+
+/// Marks this thread as running `strand`'s jobs for its lifetime.
+class RunningStrand {
+ public:
+  explicit RunningStrand(const Strand* strand) : previous_(running_strand) { running_strand = strand; }
+  ~RunningStrand() { running_strand = previous_; }
+  RunningStrand(const RunningStrand&) = delete;
+  RunningStrand& operator=(const RunningStrand&) = delete;
+
+ private:
+  const Strand* previous_;
+};
+
+}  // namespace
+
+bool Strand::runs_here() const { return running_strand == this; }
+
 void Strand::run_some(Scratch& scratch) {
+  const RunningStrand running(this);
   for (int i = 0; i < kBatch; ++i) {
     Job job;
     {

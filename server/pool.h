@@ -141,6 +141,9 @@ class Strand : public std::enable_shared_from_this<Strand> {
   /// `client`: the key the strand's turns are submitted under.
   Strand(WorkerPool& pool, std::string client) : pool_(pool), client_(std::move(client)) {}
   void post(Job job);
+  /// Whether the calling thread is running one of this strand's jobs now:
+  /// what only the strand may touch asserts it (VOXVIS_ASSERT).
+  bool runs_here() const;
 
  private:
   void run_some(Scratch& scratch);

@@ -5,6 +5,7 @@
 #include <utility>
 
 #include "streams.h"
+#include "voxvis/assert.h"
 
 namespace voxvis::server {
 namespace {
@@ -51,6 +52,7 @@ void SceneEntry::after_frame(const FrameResult& result) {
 }
 
 void SceneEntry::after_moves(double at) {
+  VOXVIS_ASSERT(strand && strand->runs_here());  // sim_clock_set is the strand's.
   store_max(time, at);
   store_max(sim_time, at);
   sim_clock_set = true;

@@ -13,6 +13,7 @@
 #include "env.h"
 #include "frame_answer.h"
 #include "streams.h"
+#include "voxvis/assert.h"
 
 namespace voxvis::server {
 namespace {
@@ -543,6 +544,8 @@ void Service::release_viewer(const std::string& client, const std::shared_ptr<Sc
 
 grpc::Status Service::apply_batch(SceneEntry& e, double t, const std::vector<Move>& moves,
                                   const std::string& field_prefix, MoveReport* report) {
+  // The scene's batches and its simulation clock are its strand's alone.
+  VOXVIS_ASSERT(e.strand && e.strand->runs_here());
   // One batch may advance the clock by a bounded step; the first one on a
   // scene adopts the backend's epoch.
   const double step_limit = config_.max_time_step_s;

@@ -1,6 +1,7 @@
 // The worker pool and strands: a scene's jobs never overlap and run in the
 // order posted; different strands run in parallel; drain waits for all; a
-// job that throws stops neither the pool nor its strand.
+// job that throws stops neither the pool nor its strand; a strand knows
+// when the calling thread runs its jobs (what its asserts rely on).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -74,6 +75,34 @@ TEST(Strand, DifferentStrandsRunInParallel) {
   pool.drain();
   EXPECT_TRUE(a_saw_b.load());
   EXPECT_TRUE(b_saw_a.load());
+}
+
+TEST(Strand, RunsHereOnlyInsideItsOwnJobs) {
+  WorkerPool pool(2);
+  auto a = std::make_shared<Strand>(pool, "a");
+  auto b = std::make_shared<Strand>(pool, "b");
+  EXPECT_FALSE(a->runs_here());  // The test's own thread runs no job.
+  std::atomic<int> in_a{0}, in_b{0}, a_in_b{0}, b_in_a{0}, plain_job{0};
+  constexpr int kJobs = 50;
+  for (int i = 0; i < kJobs; ++i) {
+    a->post([&](Scratch&) {
+      in_a += a->runs_here() ? 1 : 0;
+      b_in_a += b->runs_here() ? 1 : 0;
+    });
+    b->post([&](Scratch&) {
+      in_b += b->runs_here() ? 1 : 0;
+      a_in_b += a->runs_here() ? 1 : 0;
+    });
+    // A job of the pool's own, on a worker that ran strands' jobs before.
+    pool.submit("other", [&](Scratch&) { plain_job += (a->runs_here() || b->runs_here()) ? 1 : 0; });
+  }
+  pool.drain();
+  EXPECT_EQ(in_a.load(), kJobs);
+  EXPECT_EQ(in_b.load(), kJobs);
+  EXPECT_EQ(a_in_b.load(), 0);
+  EXPECT_EQ(b_in_a.load(), 0);
+  EXPECT_EQ(plain_job.load(), 0);
+  EXPECT_FALSE(a->runs_here());
 }
 
 TEST(WorkerPool, DrainWaitsForJobsThatPostMoreJobs) {
