@@ -2,9 +2,12 @@
 // reports its own errors on stderr as "voxvis: error: <file>:<line>: <field>: <message>";
 // the networked ones (load, scenes, delete, view, simulate, loadgen) report a
 // server's answer as "voxvis: error: server: <CODE>: <message>".
+// Each subcommand adds itself to the app (add_<name>_command, in the file of
+// its run_ function); main.cpp adds them in order and runs the one parsed.
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -12,6 +15,10 @@
 
 #include "voxvis/format.h"
 #include "voxvis/scene.h"
+
+namespace CLI {
+class App;
+}  // namespace CLI
 
 namespace voxvis::cli {
 
@@ -22,6 +29,32 @@ inline constexpr int kExitError = 2;     ///< Bad input, bad arguments, I/O fail
 
 /// Prints "voxvis: error: <error.str()>" on stderr and returns kExitError.
 int report(const FormatError& error);
+
+/// A subcommand added to the app: `run` is called when it was the one parsed,
+/// and returns the exit status. Its arguments live as long as `run`.
+struct Command {
+  CLI::App* app = nullptr;
+  std::function<int()> run;
+};
+
+/// The subcommands, in the order `voxvis --help` lists them; each adds its
+/// options to `app` (the files are those of their run_ functions).
+Command add_replay_command(CLI::App& app);        // replay.cpp
+Command add_verify_command(CLI::App& app);        // verify_cmd.cpp
+Command add_verify_merge_command(CLI::App& app);  // verify_merge_cmd.cpp
+Command add_export_command(CLI::App& app);        // export_cmd.cpp
+Command add_report_command(CLI::App& app);        // report_cmd.cpp
+Command add_generate_command(CLI::App& app);      // generate_cmd.cpp
+Command add_import_command(CLI::App& app);        // import_cmd.cpp
+Command add_load_command(CLI::App& app);          // load_cmd.cpp
+Command add_scenes_command(CLI::App& app);        // load_cmd.cpp
+Command add_delete_command(CLI::App& app);        // load_cmd.cpp
+Command add_rebalance_command(CLI::App& app);     // fleet_cmd.cpp
+Command add_health_command(CLI::App& app);        // health_cmd.cpp
+Command add_view_command(CLI::App& app);          // view_cmd.cpp
+Command add_tick_command(CLI::App& app);          // tick_cmd.cpp
+Command add_simulate_command(CLI::App& app);      // simulate_cmd.cpp
+Command add_loadgen_command(CLI::App& app);       // loadgen_cmd.cpp
 
 /// The scene and engine options of the commands that run the engine
 /// (`replay`, `verify`, `export`).

@@ -13,8 +13,11 @@
 
 #include <unistd.h>
 
+#include <CLI/CLI.hpp>
+
 #include "cli.h"
 #include "common.h"
+#include "options.h"
 #include "output_file.h"
 #include "voxvis/format.h"
 #include "voxvis/inspect.h"
@@ -164,6 +167,44 @@ int run_export(const ExportArgs& args) {
     std::fputc('\n', stderr);
   }
   return kExitOk;
+}
+
+Command add_export_command(CLI::App& app) {
+  auto args = std::make_shared<ExportArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "export", "Write the scene's voxels, and one frame's culling, as OpenVDB grids (for Houdini, Blender).");
+  cmd->add_option("--scene", args->engine.scene, "Scene file (JSON, format voxvis-scene/1)")
+      ->required()
+      ->type_name("FILE");
+  CLI::Option* frames = cmd->add_option("--frames", args->frames, "Frames file (JSON Lines), as for replay")
+                            ->type_name("FILE");
+  CLI::Option* frame =
+      cmd->add_option("--frame", args->frame,
+                      "0-based frame of --frames whose culling to write (frames 0..K are replayed)")
+          ->type_name("K");
+  frame->needs(frames);
+  frames->needs(frame);
+  cmd->add_option("--vdb", args->vdb, "OpenVDB file to write, whole or not at all")
+      ->required()
+      ->type_name("FILE");
+  cmd->add_option("--grid", args->engine.grid, "Grid resolution overriding the scene's, as for replay")
+      ->type_name("NX,NY,NZ");
+  const auto tbv = add_tbv_period_option(cmd, "TBV period for the engine, as for replay");
+  cmd->add_option("--occlusion-buffer", args->engine.occlusion_buffer,
+                  "Occlusion buffer width, as for replay (0: off, the voxel traversal; default 160)")
+      ->type_name("PIXELS");
+  cmd->add_flag("-q,--quiet", args->quiet, "No progress line and no summary on stderr");
+  cmd->footer(
+      "Grids: opaque (bool: static opacity) and objects (int32: objects touching each voxel,\n"
+      "dynamic ones where frame K's moves left them); with --frame, visited and occluded\n"
+      "(bool: what frame K's traversal did) and pvs (bool: voxels of frame K's PVS objects).\n"
+      "Index (i,j,k) is voxel (i,j,k); the transform puts its centre at\n"
+      "bounds.min + (i+0.5, j+0.5, k+0.5) * voxel_size (docs/formats.md, \"VDB export\").");
+  return {cmd, [args, tbv, frame] {
+            if (!tbv->take(&args->engine)) return kExitError;
+            args->frame_given = frame->count() > 0;
+            return run_export(*args);
+          }};
 }
 
 }  // namespace voxvis::cli

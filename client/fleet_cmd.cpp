@@ -10,8 +10,11 @@
 #include <string>
 #include <vector>
 
+#include <CLI/CLI.hpp>
+
 #include "cli.h"
 #include "common.h"
+#include "options.h"
 #include "voxvis/client.h"
 #include "voxvis/routing.h"
 
@@ -163,6 +166,26 @@ int run_rebalance(const RebalanceArgs& args) {
   std::fprintf(stderr, "voxvis: %zu scenes: %zu %s, %zu already on their owner, %zu failed\n", where.size(),
                moved, args.dry_run ? "to move" : "moved", in_place, failed);
   return failed == 0 ? kExitOk : kExitError;
+}
+
+Command add_rebalance_command(CLI::App& app) {
+  auto args = std::make_shared<RebalanceArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "rebalance", "Move every scene of a fleet to the server that owns it (after the fleet changed).");
+  add_net_options(cmd, &args->net);
+  cmd->get_option("--servers")->required();
+  cmd->add_option("--drain", args->drain,
+                  "Servers leaving the fleet (not in --servers): every scene they hold moves "
+                  "to its owner among --servers")
+      ->type_name("[NAME=]HOST:PORT,...");
+  cmd->add_flag("--dry-run", args->dry_run, "Print the moves without making them");
+  cmd->footer(
+      "Lists every server's scenes (those served, and those a server keeps for another\n"
+      "shard); each scene not on its owner is exported (its scene file and its dynamic\n"
+      "objects' current positions), created on the owner, then deleted where it was.\n"
+      "One line per move. A scene found on two servers is left alone and reported.\n"
+      "Needs an admin token on every server. Exit status 2 when any move failed.");
+  return {cmd, [args] { return run_rebalance(*args); }};
 }
 
 }  // namespace voxvis::cli

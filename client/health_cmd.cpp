@@ -7,11 +7,13 @@
 #include <memory>
 #include <string>
 
+#include <CLI/CLI.hpp>
 #include <grpcpp/grpcpp.h>
 
 #include "cli.h"
 #include "common.h"
 #include "grpc/health/v1/health.grpc.pb.h"
+#include "options.h"
 #include "voxvis/client.h"
 
 namespace voxvis::cli {
@@ -57,6 +59,23 @@ int run_health(const HealthArgs& args) {
   const std::string status = grpc::health::v1::HealthCheckResponse::ServingStatus_Name(response.status());
   std::printf("%s\n", status.c_str());
   return response.status() == grpc::health::v1::HealthCheckResponse::SERVING ? kExitOk : kExitNotServing;
+}
+
+Command add_health_command(CLI::App& app) {
+  auto args = std::make_shared<HealthArgs>();
+  CLI::App* cmd = app.add_subcommand("health", "Ask a server's health service (grpc.health.v1) whether it serves.");
+  add_net_options(cmd, &args->net, false);
+  cmd->add_option("--service", args->service, "Health service name; default: the whole server")
+      ->type_name("NAME");
+  cmd->add_option("--timeout", args->timeout, "Seconds to wait for the connection and the answer")
+      ->capture_default_str()
+      ->type_name("SECONDS");
+  cmd->footer(
+      "Prints the status (SERVING, NOT_SERVING, ...). Exit status: 0 SERVING, 4 not\n"
+      "serving, unknown, unreachable or no answer within the timeout, 2 bad arguments.\n"
+      "No token is needed. For container health checks and scripts; Kubernetes asks\n"
+      "the same service with its native gRPC probes.");
+  return {cmd, [args] { return run_health(*args); }};
 }
 
 }  // namespace voxvis::cli

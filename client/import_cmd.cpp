@@ -11,9 +11,11 @@
 #include <csignal>
 #include <cstdio>
 #include <cstring>
+#include <memory>
 #include <string>
 #include <vector>
 
+#include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
 #include "child_process.h"
@@ -275,5 +277,70 @@ int supervise(const ImportArgs& args, const import::ImportOptions& options, cons
 }
 
 }  // namespace
+
+Command add_import_command(CLI::App& app) {
+  auto args = std::make_shared<ImportArgs>();
+  ImportArgs* imp = args.get();
+  CLI::App* cmd = app.add_subcommand(
+      "import", "Import model files (glTF, OBJ, FBX, Collada, IFC, PLY, ...) as a scene of triangle meshes.");
+  cmd->add_option("models", imp->models, "Model files, imported in this order")->required()->type_name("MODEL");
+  cmd->add_option("--scene-out", imp->scene_out, "Scene file to write (JSON, format voxvis-scene/1)")
+      ->required()
+      ->type_name("FILE");
+  cmd->add_option("--names-out", imp->names_out,
+                  "Names table to write: id -> node or mesh name and source file (default: the scene "
+                  "file's name with .names.json)")
+      ->type_name("FILE");
+  cmd->add_option("--first-id", imp->first_id, "Id of the first object; the others follow in order")
+      ->type_name("N")
+      ->capture_default_str();
+  cmd->add_option("--split", imp->split,
+                  "What becomes one object: nodes (each node holding meshes, its meshes merged), meshes "
+                  "(each mesh of each node), whole (each file)")
+      ->type_name("nodes|meshes|whole")
+      ->capture_default_str();
+  cmd->add_option("--dynamic", imp->dynamic,
+                  "Objects that move: those whose name, node name or node path is NAME (each NAME must "
+                  "match one); placed by their node's translation, rotation and scale")
+      ->type_name("NAME");
+  cmd->add_option_function<double>(
+         "--max-speed", [imp](const double& v) { imp->max_speed = v; },
+         "The dynamic objects' speed bound, world units per second (required with --dynamic)")
+      ->type_name("SPEED");
+  cmd->add_option("--grid", imp->grid, "Grid resolution of the scene (default: the engine's choice)")
+      ->type_name("NX,NY,NZ");
+  cmd->add_option_function<double>(
+         "--voxel-size", [imp](const double& v) { imp->voxel_size = v; },
+         "Voxel edge, world units: the grid is the bounds divided by it (instead of --grid)")
+      ->type_name("SIZE");
+  cmd->add_option("--margin", imp->margin,
+                  "Bounds around the models, per side, as a fraction of their largest extent")
+      ->type_name("FRACTION")
+      ->capture_default_str();
+  cmd->add_option("--timeout", imp->timeout,
+                  "Seconds the import may take (0: no limit); a model reader stuck on a malformed file is "
+                  "stopped with an error naming the file")
+      ->type_name("SECONDS")
+      ->capture_default_str();
+  cmd->add_option_function<double>(
+         "--max-memory-mib", [imp](const double& v) { imp->max_memory_mib = v; },
+         "Memory the model reader may take, MiB (0: no limit; default: half the machine's memory, at least "
+         "1024); a file that needs more is an error naming it, not a process the system kills")
+      ->type_name("MIB");
+  cmd->add_flag("-q,--quiet", imp->quiet, "No progress or summary on stderr");
+  cmd->footer(
+      "Ids are given in a stable order: files as listed, nodes depth first (children in\n"
+      "the file's order), meshes in their node's order. Static objects have their node\n"
+      "transforms baked into the vertices; dynamic ones keep their node's translation,\n"
+      "rotation and uniform scale as centre, rotation and scale. Degenerate triangles,\n"
+      "points and lines are skipped and counted (docs/importing.md). The models are read\n"
+      "in a child process: a reader that crashes or hangs on a malformed file becomes an\n"
+      "error naming the file.\n"
+      "Examples:\n"
+      "  voxvis import level.glb --scene-out level.json\n"
+      "  voxvis import house.ifc props.obj --scene-out s.json --split meshes --first-id 100\n"
+      "  voxvis import level.gltf --scene-out s.json --dynamic Door Lift --max-speed 3");
+  return {cmd, [args] { return run_import(*args); }};
+}
 
 }  // namespace voxvis::cli

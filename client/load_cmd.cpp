@@ -2,12 +2,16 @@
 // `voxvis scenes` and `voxvis delete`.
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <vector>
+
+#include <CLI/CLI.hpp>
 
 #include "cli.h"
 #include "common.h"
 #include "model_loader.h"
+#include "options.h"
 #include "voxvis/client.h"
 #include "voxvis/format.h"
 #include "voxvis/routing.h"
@@ -121,6 +125,41 @@ int run_delete(const NetArgs& net, const std::string& id) {
   }
   std::printf("deleted %s\n", id.c_str());
   return kExitOk;
+}
+
+Command add_load_command(CLI::App& app) {
+  auto args = std::make_shared<LoadArgs>();
+  CLI::App* cmd = app.add_subcommand("load", "Create a scene on the server from a scene file (checked here first).");
+  add_net_options(cmd, &args->net);
+  cmd->add_option("--scene", args->scene, "Scene file (JSON, format voxvis-scene/1)")
+      ->required()
+      ->type_name("FILE");
+  cmd->add_option("--id", args->id, "Scene id: 1-64 characters from [A-Za-z0-9._-] (default: the file's stem)")
+      ->type_name("ID");
+  cmd->footer("Prints the scene's id, grid resolution and object counts. Needs an admin token.");
+  return {cmd, [args] { return run_load(*args); }};
+}
+
+Command add_scenes_command(CLI::App& app) {
+  auto net = std::make_shared<NetArgs>();
+  CLI::App* cmd = app.add_subcommand("scenes", "List the server's scenes.");
+  add_net_options(cmd, net.get());
+  cmd->footer("One line per scene: id, grid, objects, open viewers, frames served.");
+  return {cmd, [net] { return run_scenes(*net); }};
+}
+
+Command add_delete_command(CLI::App& app) {
+  /// The scene id to delete, and where.
+  struct DeleteArgs {
+    NetArgs net;
+    std::string id;
+  };
+  auto args = std::make_shared<DeleteArgs>();
+  CLI::App* cmd = app.add_subcommand("delete", "Delete a scene on the server.");
+  add_net_options(cmd, &args->net);
+  cmd->add_option("--id", args->id, "Scene id")->required()->type_name("ID");
+  cmd->footer("Its open streams end with NOT_FOUND. Needs an admin token.");
+  return {cmd, [args] { return run_routed(&args->net, args->id, [&] { return run_delete(args->net, args->id); }); }};
 }
 
 }  // namespace voxvis::cli

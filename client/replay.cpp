@@ -14,9 +14,12 @@
 
 #include <unistd.h>
 
+#include <CLI/CLI.hpp>
+
 #include "cli.h"
 #include "common.h"
 #include "model_loader.h"
+#include "options.h"
 #include "output_file.h"
 #include "voxvis/format.h"
 #include "voxvis/scene.h"
@@ -192,6 +195,36 @@ int run_replay(const ReplayArgs& args) {
                  index, wall, sp.mean, sp.median, sp.p99, pvs_total / n, too_fast);
   }
   return kExitOk;
+}
+
+Command add_replay_command(CLI::App& app) {
+  auto args = std::make_shared<ReplayArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "replay",
+      "Replay a frames file against a scene and write one PVS line per frame.");
+  cmd->add_option("--scene", args->engine.scene, "Scene file (JSON, format voxvis-scene/1)")
+      ->required()
+      ->type_name("FILE");
+  cmd->add_option("--frames", args->frames, "Frames file (JSON Lines: one camera and optional moves per line)")
+      ->required()
+      ->type_name("FILE");
+  cmd->add_option("--grid", args->engine.grid,
+                  "Grid resolution overriding the scene's, voxels per axis (e.g. 64,32,64)")
+      ->type_name("NX,NY,NZ");
+  cmd->add_option("--out", args->out, "Output file (JSON Lines), written whole or not at all; default stdout")
+      ->type_name("FILE");
+  const auto tbv = add_tbv_period_option(
+      cmd, "Fixed validity period of temporal bounding volumes, seconds (default: adaptive)");
+  cmd->add_option("--occlusion-buffer", args->engine.occlusion_buffer,
+                  "Width in pixels of the conservative occlusion buffer (8..4096, "
+                  "or 0: off; default 160)")
+      ->type_name("PIXELS");
+  add_region_options(cmd, &args->region);
+  cmd->add_flag("-q,--quiet", args->quiet, "No progress line and no summary on stderr");
+  cmd->footer(
+      "Output: one line per frame, {\"frame\", \"pvs\", \"wake\", \"stats\"}; ids ascending.\n"
+      "Progress (on a terminal) and a timing summary go to stderr unless --quiet.");
+  return {cmd, [args, tbv] { return tbv->take(&args->engine) ? run_replay(*args) : kExitError; }};
 }
 
 }  // namespace voxvis::cli

@@ -8,13 +8,17 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <memory>
 #include <optional>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include <CLI/CLI.hpp>
+
 #include "cli.h"
 #include "common.h"
+#include "options.h"
 #include "voxvis/client.h"
 #include "voxvis/format.h"
 
@@ -122,6 +126,27 @@ int run_simulate(const SimulateArgs& args) {
                  static_cast<unsigned long long>(sim.wake_version()));
   }
   return kExitOk;
+}
+
+Command add_simulate_command(CLI::App& app) {
+  auto args = std::make_shared<SimulateArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "simulate", "Send a frames file's moves to the server and print wake-list changes.");
+  add_net_options(cmd, &args->net);
+  cmd->add_option("--scene", args->scene, "Scene id on the server")->required()->type_name("ID");
+  cmd->add_option("--frames", args->frames, "Frames file; each line's moves are one batch")
+      ->required()
+      ->type_name("FILE");
+  cmd->add_option("--rate", args->rate,
+                  "Batches per second, paced by the wall clock (default: as fast as "
+                  "acknowledged)")
+      ->type_name("HZ");
+  cmd->add_flag("-q,--quiet", args->quiet, "No summary on stderr");
+  cmd->footer(
+      "Batch seq = 0-based line index, t = the line's t. Output: one line per wake-list\n"
+      "change, {\"seq\": <latest ack before it, null before any>, \"version\", \"size\",\n"
+      "\"wake\": [the whole list, ascending]}. Needs a simulation token.");
+  return {cmd, [args] { return run_routed(&args->net, args->scene, [&] { return run_simulate(*args); }); }};
 }
 
 }  // namespace voxvis::cli

@@ -14,8 +14,11 @@
 
 #include <unistd.h>
 
+#include <CLI/CLI.hpp>
+
 #include "cli.h"
 #include "common.h"
+#include "options.h"
 #include "output_file.h"
 #include "voxvis/client.h"
 #include "voxvis/format.h"
@@ -112,6 +115,34 @@ int run_tick(const TickArgs& args) {
                  pvs_total / static_cast<double>(n * viewers), too_fast);
   }
   return kExitOk;
+}
+
+Command add_tick_command(CLI::App& app) {
+  auto args = std::make_shared<TickArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "tick", "Replay a frames file against a scene on the server as ticks: every viewer in one message.");
+  add_net_options(cmd, &args->net);
+  cmd->add_option("--scene", args->scene, "Scene id on the server")->required()->type_name("ID");
+  cmd->add_option("--frames", args->frames, "Frames file (JSON Lines: one camera and optional moves per line)")
+      ->required()
+      ->type_name("FILE");
+  cmd->add_option("--viewers", args->viewers,
+                  "Viewers a tick, each walking the recording from its own start (line v*n/N)")
+      ->check(CLI::Range(1, 1024))
+      ->type_name("N");
+  cmd->add_option("--out", args->out,
+                  "One viewer: the output file (default stdout); several: a directory for "
+                  "viewer-<k>.jsonl. Written whole or not at all")
+      ->type_name("PATH");
+  cmd->add_flag("--delta", args->delta, "Ask for PVS deltas and reassemble them (same output)");
+  add_region_options(cmd, &args->region);
+  cmd->add_flag("-q,--quiet", args->quiet, "No progress line and no summary on stderr");
+  cmd->footer(
+      "Lock-step, one Tick stream: tick k carries line k's moves and time and each viewer's\n"
+      "camera. Output: per viewer, the lines `voxvis replay` writes, {\"frame\", \"pvs\",\n"
+      "\"wake\", \"stats\"}, frame = the tick; viewer 0's equal replay's. Moves need a\n"
+      "simulation token.");
+  return {cmd, [args] { return run_routed(&args->net, args->scene, [&] { return run_tick(*args); }); }};
 }
 
 }  // namespace voxvis::cli

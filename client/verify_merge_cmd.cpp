@@ -7,9 +7,11 @@
 #include <cstdint>
 #include <cstdio>
 #include <fstream>
+#include <memory>
 #include <string>
 #include <vector>
 
+#include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
 #include "cli.h"
@@ -128,6 +130,24 @@ int run_verify_merge(const VerifyMergeArgs& args) {
                static_cast<unsigned long long>(visible), static_cast<unsigned long long>(pvs),
                visible ? static_cast<double>(pvs) / static_cast<double>(visible) : 0.0, d.median, d.p99);
   return missed > 0 ? kExitMissed : kExitOk;
+}
+
+Command add_verify_merge_command(CLI::App& app) {
+  auto args = std::make_shared<VerifyMergeArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "verify-merge", "Join the slices of a verification split over workers, check them, summarise.");
+  cmd->add_option("slices", args->slices, "`voxvis verify --out` files of the slices, any order")
+      ->required()
+      ->type_name("SLICE");
+  cmd->add_option("--out", args->out, "The joined output (JSON Lines); default stdout")->type_name("FILE");
+  cmd->add_option("--frames", args->frames, "Frames the slices must cover, 0 to N-1 (a lost slice is an error)")
+      ->check(CLI::NonNegativeNumber)
+      ->type_name("N");
+  cmd->footer(
+      "The slices are sorted by their first frame; a gap or an overlap is an error naming\n"
+      "the file. The summary (stderr) counts as `verify`'s: missed object-frames, edge-only\n"
+      "sightings dismissed, visible, PVS, tightness. Exit 3 when a frame has a miss.");
+  return {cmd, [args] { return run_verify_merge(*args); }};
 }
 
 }  // namespace voxvis::cli

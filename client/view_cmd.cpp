@@ -16,8 +16,11 @@
 
 #include <unistd.h>
 
+#include <CLI/CLI.hpp>
+
 #include "cli.h"
 #include "common.h"
+#include "options.h"
 #include "output_file.h"
 #include "voxvis/client.h"
 #include "voxvis/format.h"
@@ -167,6 +170,32 @@ int run_view(const ViewArgs& args) {
                  index, wall, sp.mean, sp.median, sp.p99, pvs_total / n, too_fast);
   }
   return kExitOk;
+}
+
+Command add_view_command(CLI::App& app) {
+  auto args = std::make_shared<ViewArgs>();
+  CLI::App* cmd = app.add_subcommand("view", "Replay a frames file against a scene on the server, as one viewer.");
+  add_net_options(cmd, &args->net);
+  cmd->add_option("--scene", args->scene, "Scene id on the server")->required()->type_name("ID");
+  cmd->add_option("--frames", args->frames, "Frames file (JSON Lines: one camera and optional moves per line)")
+      ->required()
+      ->type_name("FILE");
+  cmd->add_option("--out", args->out, "Output file (JSON Lines), written whole or not at all; default stdout")
+      ->type_name("FILE");
+  cmd->add_flag("--delta", args->delta, "Ask for PVS deltas and reassemble them (same output)");
+  add_region_options(cmd, &args->region);
+  cmd->add_flag("-q,--quiet", args->quiet, "No progress line and no summary on stderr");
+  cmd->add_option("--every", args->every,
+                  "Print a one-line summary of every Nth frame on stderr (PVS size and "
+                  "change, wake list, engine time, round trip)")
+      ->check(CLI::Range(0, 1000000))
+      ->type_name("N");
+  cmd->footer(
+      "Lock-step: a line's moves are sent (Simulate) and acknowledged, then its camera\n"
+      "(View, frame number = 0-based frame index, time = the line's t). Output: the\n"
+      "lines `voxvis replay` writes, {\"frame\", \"pvs\", \"wake\", \"stats\"}, computed by\n"
+      "the server. Moves need a simulation token.");
+  return {cmd, [args] { return run_routed(&args->net, args->scene, [&] { return run_view(*args); }); }};
 }
 
 }  // namespace voxvis::cli
