@@ -150,9 +150,14 @@ generated "$work/generated"
 FORK_TARGETS=" import "
 
 # owner_of BIN REPRODUCER: "assimp", "voxvis", "clean" (the input alone
-# runs without a finding), or "unknown" (no stack names either).
+# runs without a finding), or "unknown" (no stack names either). A timeout's
+# input runs again with six times the limit: libFuzzer's limit is wall-clock
+# time, so on a loaded machine an input of a second's work can pass it,
+# while a hang still hangs and its stack then says whose it is.
 owner_of() {
-  { timeout 120 "$1" -timeout="$timeout" -rss_limit_mb=2048 -malloc_limit_mb=2048 "$2" 2>&1 || true; } |
+  local limit="$timeout"
+  case "$(basename "$2")" in timeout-*) limit=$((timeout * 6)) ;; esac
+  { timeout $((limit + 120)) "$1" -timeout="$limit" -rss_limit_mb=2048 -malloc_limit_mb=2048 "$2" 2>&1 || true; } |
     awk '/fuzz check failed/ { print "voxvis"; found = 1; exit }
          /^ *#[0-9]+ 0x/ {
            if ($0 ~ /libassimp\.so/) { print "assimp"; found = 1; exit }
@@ -206,9 +211,13 @@ for name in "${TARGETS[@]}"; do
       owner=$(owner_of "$bin" "$artifacts/$f")
       # An out-of-memory that the input alone does not reproduce is the
       # memory a fork-mode job gathered over many inputs (assimp's
-      # suppressed leaks among it): kept and listed, not a finding.
-      if [ "$owner" = assimp ] || { [ "$owner" = clean ] && [[ "$f" == oom-* ]]; }; then
-        [ "$owner" = assimp ] || owner=job-memory
+      # suppressed leaks among it), and a timeout whose input alone ends
+      # within six times the limit was the machine's load, not a hang:
+      # both kept and listed, not findings.
+      if [ "$owner" = assimp ] || { [ "$owner" = clean ] && [[ "$f" == oom-* || "$f" == timeout-* ]]; }; then
+        if [ "$owner" = clean ]; then
+          case "$f" in oom-*) owner=job-memory ;; *) owner=slow-under-load ;; esac
+        fi
         mv "$artifacts/$f" "$artifacts/assimp-$f"
         printf '%s\t%s\t%s\n' "$(date -u +%FT%TZ)" "$owner" "$artifacts/assimp-$f" >>"$work/assimp-findings.tsv"
         known=$((known + 1))
