@@ -113,6 +113,7 @@ void OcclusionBuffer::begin(const WorldFrustum& wf, int width) {
     for (std::size_t t = 0; t < tiles; ++t) tile_max_[t] = tile_largest(px_.data() + t * kTilePixels);
     tile_written_.assign(tiles, 0);
     written_tiles_.clear();
+    covered_tiles_ = 0;
   } else {
     clear_written();
   }
@@ -151,6 +152,7 @@ void OcclusionBuffer::clear_written() {
     tile_max_[t] = tile_largest(tile);
   }
   written_tiles_.clear();
+  covered_tiles_ = 0;
 }
 
 float OcclusionBuffer::pixel(int i, int j) const {
@@ -204,6 +206,8 @@ bool OcclusionBuffer::polygon_edges(const Vec3* v, int n, ConvexOccluder* occ) c
 
 double OcclusionBuffer::farthest_bound() const {
   if (!on()) return kInf;
+  while (covered_tiles_ < tile_min_.size() && tile_min_[covered_tiles_] > 0.0f) ++covered_tiles_;
+  if (covered_tiles_ < tile_min_.size()) return kInf;  // A tile without a bound yet.
   float m = std::numeric_limits<float>::max();
   for (std::size_t t = 0; t < tile_min_.size() && m > 0.0f; ++t) m = std::min(m, tile_min_[t]);
   return m > 0.0f ? near_ / static_cast<double>(m) * (1.0 + 4.0 * kEps) : kInf;

@@ -299,6 +299,10 @@ class OcclusionBuffer {
   /// occlusion_tile.h), row-major within a tile.
   std::vector<float> px_;
   std::vector<float> tile_min_, tile_max_;  ///< Least and largest bound of each tile.
+  /// Every tile before this one holds a bound above 0 (a tile's least
+  /// bound only rises within a frame), so farthest_bound() looks for a tile
+  /// still at 0 from here on: each tile is passed once a frame.
+  mutable std::size_t covered_tiles_ = 0;
   /// Tiles written this frame (listed once each), so that a frame clears
   /// only what the previous one wrote.
   std::vector<std::uint32_t> written_tiles_;

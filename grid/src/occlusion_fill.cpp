@@ -251,6 +251,7 @@ bool OcclusionBuffer::fill(const ConvexOccluder& occ) {
       job.c1 = std::min(occ.i1, I0 + kTileW - 1) - I0;
       float* tile = px_.data() + t * kTilePixels;
       const TileResult r = avx2 ? raster_tile_avx2(tile, job) : raster_tile_scalar(tile, job);
+      VOXVIS_ASSERT(r.min >= tile_min_[t]);  // Bounds only rise (farthest_bound relies on it).
       tile_min_[t] = r.min;
       tile_max_[t] = r.max;
       if (r.raised == 0) continue;
