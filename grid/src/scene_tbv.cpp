@@ -18,9 +18,6 @@ namespace voxvis {
 
 using detail::Obj;
 using detail::VoxBox;
-using detail::finite3;
-using detail::clamp_floor;
-using detail::kUlp;
 using detail::max_abs;
 namespace {
 
