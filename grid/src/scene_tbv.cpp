@@ -19,6 +19,7 @@ namespace voxvis {
 using detail::Obj;
 using detail::VoxBox;
 using detail::max_abs;
+
 namespace {
 
 /// now + period, but always later than now: the frame's expiry loop takes
