@@ -4,7 +4,6 @@
 #include <cmath>
 #include <utility>
 
-#include "streams.h"
 #include "voxvis/assert.h"
 
 namespace voxvis::server {
@@ -37,10 +36,7 @@ void SceneEntry::refresh_wake() {
   snap->version = wake ? wake->version + 1 : 1;
   snap->ids = ids;
   wake = snap;
-  for (const auto& sink : sinks) {
-    std::lock_guard<std::mutex> sink_lock(sink->mu);
-    if (sink->reactor) deliver_wake(sink->reactor, wake);
-  }
+  for (const auto& sink : sinks) sink->wake_changed(wake);
 }
 
 void SceneEntry::after_frame(const FrameResult& result) {
@@ -66,8 +62,7 @@ void SceneEntry::subscribe(const std::shared_ptr<WakeSink>& sink) {
   refresh_wake();
   std::lock_guard<std::mutex> lock(wake_mu);
   sinks.push_back(sink);
-  std::lock_guard<std::mutex> sink_lock(sink->mu);
-  if (sink->reactor) deliver_wake(sink->reactor, wake);  // The whole list first.
+  sink->wake_changed(wake);  // The whole list first.
 }
 
 void SceneEntry::unsubscribe(const std::shared_ptr<WakeSink>& sink) {

@@ -24,13 +24,14 @@ struct WakeSnapshot {
   std::vector<ObjectId> ids;
 };
 
-class SimReactor;
-
-/// Where a scene delivers wake-list changes to one Simulate stream. The
-/// stream clears `reactor` (under `mu`) before it is deleted.
-struct WakeSink {
-  std::mutex mu;
-  SimReactor* reactor = nullptr;  // Guarded by mu.
+/// Where a scene delivers its wake list's changes: a Simulate stream
+/// subscribes one (SceneEntry::subscribe; streams.cpp implements it) and the
+/// scene calls it, under its wake_mu, with the whole list first and then
+/// every new one. The scene knows only this interface, never the streams.
+class WakeSink {
+ public:
+  virtual ~WakeSink() = default;
+  virtual void wake_changed(std::shared_ptr<const WakeSnapshot> snap) = 0;
 };
 
 /// The engine's viewer of a call that keeps one across frames (a View

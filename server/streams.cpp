@@ -212,14 +212,32 @@ class ViewReactor final
 // Wake lists are latest-wins: a delta is taken at write time against the
 // last list written.
 
+class SimReactor;
+
+/// A Simulate stream's end of its scene's wake list (scene_entry.h): hands
+/// each list to the stream until the stream is done, then nothing.
+class StreamWakeSink final : public WakeSink {
+ public:
+  explicit StreamWakeSink(SimReactor* reactor) : reactor_(reactor) {}
+  void wake_changed(std::shared_ptr<const WakeSnapshot> snap) override;
+  /// From here on the scene's calls reach no stream (the stream is going).
+  void detach() {
+    std::lock_guard<std::mutex> lock(mu_);
+    reactor_ = nullptr;
+  }
+
+ private:
+  std::mutex mu_;
+  SimReactor* reactor_;  // Guarded by mu_.
+};
+
 class SimReactor final
     : public StreamReactor<v1::SimulateRequest, v1::SimulateResponse, SimReactor> {
   friend class StreamReactor<v1::SimulateRequest, v1::SimulateResponse, SimReactor>;
 
  public:
   SimReactor(Service* svc, grpc::CallbackServerContext* ctx) : StreamReactor(svc, "Simulate") {
-    sink_ = std::make_shared<WakeSink>();
-    sink_->reactor = this;
+    sink_ = std::make_shared<StreamWakeSink>(this);
     const grpc::Status admitted = admit(ctx, Role::Simulation);
     std::lock_guard<std::mutex> lock(mu_);
     if (!admitted.ok()) stop_locked(admitted);
@@ -246,8 +264,7 @@ class SimReactor final
 
   void on_done() {
     // From here on the scene delivers nothing to this stream.
-    std::lock_guard<std::mutex> lock(sink_->mu);
-    sink_->reactor = nullptr;
+    sink_->detach();
   }
   void on_stop_locked() {}
 
@@ -358,7 +375,7 @@ class SimReactor final
     entry_->unsubscribe(sink_);
   }
 
-  std::shared_ptr<WakeSink> sink_;
+  std::shared_ptr<StreamWakeSink> sink_;
   bool have_batch_t_ = false;
   double last_batch_t_ = 0.0;
   std::optional<v1::MoveAck> ack_;     // Guarded by mu_: acknowledgement waiting to be written.
@@ -366,8 +383,9 @@ class SimReactor final
   bool reading_ = false, applying_ = false, eof_ = false;  // Guarded by mu_.
 };
 
-void deliver_wake(SimReactor* r, std::shared_ptr<const WakeSnapshot> snap) {
-  r->on_wake(std::move(snap));
+void StreamWakeSink::wake_changed(std::shared_ptr<const WakeSnapshot> snap) {
+  std::lock_guard<std::mutex> lock(mu_);
+  if (reactor_) reactor_->on_wake(std::move(snap));
 }
 
 grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>* new_view_stream(

@@ -18,7 +18,5 @@ grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>* new_simulate_stream
 /// A Tick stream: every viewer of a game server's tick (proto: Visibility.Tick; tick_stream.cpp).
 grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>* new_tick_stream(
     Service* svc, grpc::CallbackServerContext* ctx);
-/// Hands a Simulate stream the scene's newest wake list.
-void deliver_wake(SimReactor* r, std::shared_ptr<const WakeSnapshot> snap);
 
 }  // namespace voxvis::server
