@@ -244,7 +244,8 @@ bool Traversal::occluded_at(const std::int64_t v[3], std::int64_t j) const {
     const double va = static_cast<double>(v[a]);
     const double t0 = (c - ea) / (va - ea);
     const double t1 = (c - ea) / (va + 1.0 - ea);
-    const auto [_, b, d] = axis_axes(a);
+    const FaceAxes ax = axis_axes(a);
+    const int b = ax.b, d = ax.d;
     const Range rb = required(b, v[b], t0, t1, j);
     const Range rd = required(d, v[d], t0, t1, j);
     if (rb.empty() || rd.empty()) continue;
@@ -406,7 +407,8 @@ void Traversal::collect(std::int64_t idx, const std::int64_t v[3], std::uint8_t 
 
 void Traversal::fill_table(ExitTable& t, int face, std::int64_t la, std::int64_t j,
                            const Range& rb, const Range& rd) const {
-  const auto [a, b, d] = face_axes(face);
+  const FaceAxes ax = face_axes(face);
+  const int a = ax.a, b = ax.b, d = ax.d;
   const double c = (face & 1) ? static_cast<double>(-j) : static_cast<double>(j + 1);
   const double ea = lf_.e[a];
   const double t0 = (c - ea) / (static_cast<double>(la) - ea);
@@ -566,7 +568,8 @@ void Traversal::run() {
     // The pyramid's cut with each face layer of shell m, minus the grid when
     // only_outside: empty space that never blocks.
     for (int face = 0; face < 6; ++face) {
-      const auto [a, b, d] = face_axes(face);
+      const FaceAxes ax = face_axes(face);
+  const int a = ax.a, b = ax.b, d = ax.d;
       const std::int64_t la = face_layer(face, m);
       bool any_b = false, any_d = false;
       Range rb = frustum_rect_axis(a, la, b, &any_b);
@@ -610,7 +613,8 @@ void Traversal::run() {
     if (!eye_inside_) add_face_rects(m, next, true);
     const std::int64_t R = m - 1 <= 1 ? 4 : 3;  // Exit voxels lie within R of v (docs/design.md).
     for (int face = 0; face < 6; ++face) {
-      const auto [a, b, d] = face_axes(face);
+      const FaceAxes ax = face_axes(face);
+  const int a = ax.a, b = ax.b, d = ax.d;
       const std::int64_t la = face_layer(face, m);
       if (la < glo_[a] || la > ghi_[a]) continue;
       if (m == 0 && face > 0) break;
