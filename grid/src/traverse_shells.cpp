@@ -569,7 +569,7 @@ void Traversal::run() {
     // only_outside: empty space that never blocks.
     for (int face = 0; face < 6; ++face) {
       const FaceAxes ax = face_axes(face);
-  const int a = ax.a, b = ax.b, d = ax.d;
+      const int a = ax.a, b = ax.b, d = ax.d;
       const std::int64_t la = face_layer(face, m);
       bool any_b = false, any_d = false;
       Range rb = frustum_rect_axis(a, la, b, &any_b);
@@ -614,7 +614,7 @@ void Traversal::run() {
     const std::int64_t R = m - 1 <= 1 ? 4 : 3;  // Exit voxels lie within R of v (docs/design.md).
     for (int face = 0; face < 6; ++face) {
       const FaceAxes ax = face_axes(face);
-  const int a = ax.a, b = ax.b, d = ax.d;
+      const int a = ax.a, b = ax.b, d = ax.d;
       const std::int64_t la = face_layer(face, m);
       if (la < glo_[a] || la > ghi_[a]) continue;
       if (m == 0 && face > 0) break;
