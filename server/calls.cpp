@@ -75,18 +75,4 @@ grpc::Status serialize_message(const google::protobuf::MessageLite& m, grpc::Byt
   return grpc::SerializationTraits<google::protobuf::MessageLite>::Serialize(m, out, &own_buffer);
 }
 
-void difference(const std::vector<ObjectId>& a, const std::vector<ObjectId>& b,
-                google::protobuf::RepeatedField<std::uint32_t>* out) {
-  std::size_t j = 0;
-  for (ObjectId id : a) {
-    while (j < b.size() && b[j] < id) ++j;
-    if (j == b.size() || b[j] != id) out->Add(id);
-  }
-}
-
-void add_ids(const std::vector<ObjectId>& ids, google::protobuf::RepeatedField<std::uint32_t>* out) {
-  out->Reserve(static_cast<int>(ids.size()));
-  for (ObjectId id : ids) out->AddAlreadyReserved(id);
-}
-
 }  // namespace voxvis::server

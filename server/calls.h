@@ -22,7 +22,6 @@
 #include <vector>
 
 #include <google/protobuf/arena.h>
-#include <google/protobuf/repeated_field.h>
 #include <grpcpp/grpcpp.h>
 
 #include "voxvis/types.h"
@@ -95,11 +94,6 @@ class ReusedMessage {
   std::unique_ptr<google::protobuf::Arena> arena_;
   M* message_ = nullptr;
 };
-
-/// a \ b for ascending a and b, appended to `out`.
-void difference(const std::vector<ObjectId>& a, const std::vector<ObjectId>& b,
-                google::protobuf::RepeatedField<std::uint32_t>* out);
-void add_ids(const std::vector<ObjectId>& ids, google::protobuf::RepeatedField<std::uint32_t>* out);
 
 /// A unary call's reactor. finish() serializes the response when the status
 /// is OK; the reactor deletes itself when gRPC is done with it.

@@ -253,38 +253,6 @@ Status moves_from_proto(const google::protobuf::RepeatedPtrField<v1::Move>& in, 
   return Status::Ok();
 }
 
-void ids_to_proto(const std::vector<ObjectId>& ids, v1::IdSet* out) {
-  out->Clear();
-  if (ids.empty()) return;
-  // Bytes of each form: a varint a gap, against one bit an id of the range.
-  std::size_t gap_bytes = 0;
-  ObjectId prev = 0;
-  for (ObjectId id : ids) {
-    const std::uint32_t gap = id - prev;
-    gap_bytes += gap < (1u << 7) ? 1 : gap < (1u << 14) ? 2 : gap < (1u << 21) ? 3 : gap < (1u << 28) ? 4 : 5;
-    prev = id;
-  }
-  const std::uint64_t span = std::uint64_t{ids.back()} - ids.front() + 1;
-  const std::uint64_t bit_bytes = (span + 7) / 8 + 5;  // The bits and the base.
-  if (bit_bytes < gap_bytes) {
-    std::string bits(static_cast<std::size_t>((span + 7) / 8), '\0');
-    for (ObjectId id : ids) {
-      const std::uint64_t k = id - ids.front();
-      bits[static_cast<std::size_t>(k / 8)] = static_cast<char>(bits[static_cast<std::size_t>(k / 8)] | (1 << (k % 8)));
-    }
-    out->set_base(ids.front());
-    out->set_bits(std::move(bits));
-    return;
-  }
-  auto* gaps = out->mutable_gaps();
-  gaps->Reserve(static_cast<int>(ids.size()));
-  prev = 0;
-  for (ObjectId id : ids) {
-    gaps->AddAlreadyReserved(id - prev);
-    prev = id;
-  }
-}
-
 void vec_to_proto(const Vec3& in, v1::Vec3* out) {
   out->set_x(in.x);
   out->set_y(in.y);

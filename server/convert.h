@@ -58,9 +58,6 @@ Status moves_from_proto(const v1::MoveBatch& in, std::vector<Move>* out);
 Status moves_from_proto(const google::protobuf::RepeatedPtrField<v1::Move>& in, const std::string& path,
                         std::vector<Move>* out);
 
-/// An ascending id set in the smaller of IdSet's two forms (gaps or bitset).
-void ids_to_proto(const std::vector<ObjectId>& ids, v1::IdSet* out);
-
 void stats_to_proto(const FrameStats& in, v1::FrameStats* out);
 void vec_to_proto(const Vec3& in, v1::Vec3* out);
 

@@ -1,41 +1,18 @@
 // frame_answer.h — a served frame (Service::serve_frame) as its call's
 // answer: a GetPvsResponse, a ViewResponse or a Tick stream's TickAnswer.
-// The PVS, its delta and the wake go into repeated uint32 fields (GetPvs,
-// View) or IdSets (Tick); everything else is the same for all three.
+// The PVS, its delta and the wake go out through ids.h (repeated uint32
+// fields for GetPvs and View, IdSets for Tick); everything else is the same
+// for all three.
 #pragma once
 
-#include <algorithm>
-#include <cstdint>
-#include <iterator>
-#include <utility>
 #include <vector>
 
-#include <google/protobuf/repeated_field.h>
-
-#include "calls.h"
 #include "convert.h"
+#include "ids.h"
 #include "scene_entry.h"
 #include "voxvis/v1/voxvis.pb.h"
 
 namespace voxvis::server {
-
-namespace answer_detail {
-
-using Ids = std::vector<ObjectId>;
-using RepeatedIds = google::protobuf::RepeatedField<std::uint32_t>;
-
-inline void put_ids(const Ids& ids, RepeatedIds* out, Ids*) { add_ids(ids, out); }
-inline void put_ids(const Ids& ids, v1::IdSet* out, Ids*) { ids_to_proto(ids, out); }
-
-/// a \ b (both ascending); an IdSet's goes through `scratch`.
-inline void put_difference(const Ids& a, const Ids& b, RepeatedIds* out, Ids*) { difference(a, b, out); }
-inline void put_difference(const Ids& a, const Ids& b, v1::IdSet* out, Ids* scratch) {
-  scratch->clear();
-  std::set_difference(a.begin(), a.end(), b.begin(), b.end(), std::back_inserter(*scratch));
-  ids_to_proto(*scratch, out);
-}
-
-}  // namespace answer_detail
 
 /// Writes a served frame of scene `e` into its answer `out`: the time it ran
 /// at, its PVS in `encoding` — whole, or the ids added and removed since
@@ -49,8 +26,6 @@ template <class Msg>
 void answer_frame(const SceneEntry& e, FrameResult& result, v1::PvsEncoding encoding,
                   std::vector<ObjectId>* last_sent, double latency, Msg* out,
                   std::vector<ObjectId>* scratch = nullptr) {
-  using answer_detail::put_difference;
-  using answer_detail::put_ids;
   std::vector<ObjectId>& pvs = result.pvs;
   out->set_t(result.t);
   if constexpr (requires { out->mutable_added(); }) {
@@ -58,12 +33,12 @@ void answer_frame(const SceneEntry& e, FrameResult& result, v1::PvsEncoding enco
       put_difference(pvs, *last_sent, out->mutable_added(), scratch);
       put_difference(*last_sent, pvs, out->mutable_removed(), scratch);
     } else {
-      put_ids(pvs, out->mutable_pvs(), scratch);
+      put_ids(pvs, out->mutable_pvs());
     }
   } else {
-    put_ids(pvs, out->mutable_pvs(), scratch);  // Only whole PVSs (GetPvs).
+    put_ids(pvs, out->mutable_pvs());  // Only whole PVSs (GetPvs).
   }
-  if constexpr (requires { out->mutable_wake(); }) put_ids(result.wake, out->mutable_wake(), scratch);
+  if constexpr (requires { out->mutable_wake(); }) put_ids(result.wake, out->mutable_wake());
   stats_to_proto(result.stats, out->mutable_stats());
   if (e.metrics) e.metrics->frame(result.stats, latency);
   // The PVS becomes the next delta's base; the frame's result takes the old

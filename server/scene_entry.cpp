@@ -70,9 +70,4 @@ void SceneEntry::unsubscribe(const std::shared_ptr<WakeSink>& sink) {
   sinks.erase(std::remove(sinks.begin(), sinks.end(), sink), sinks.end());
 }
 
-std::shared_ptr<const WakeSnapshot> SceneEntry::wake_now() {
-  std::lock_guard<std::mutex> lock(wake_mu);
-  return wake;
-}
-
 }  // namespace voxvis::server

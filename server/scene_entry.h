@@ -1,6 +1,6 @@
 // scene_entry.h — a scene being served: the engine's Scene and what the
 // server keeps beside it (its strand, clocks, counters, metrics, and the wake
-// list it hands to Simulate streams). The scenes themselves are kept by the
+// list it hands to Simulate and Tick streams). The scenes themselves are kept by the
 // SceneRegistry (scene_registry.h).
 #pragma once
 
@@ -24,10 +24,11 @@ struct WakeSnapshot {
   std::vector<ObjectId> ids;
 };
 
-/// Where a scene delivers its wake list's changes: a Simulate stream
-/// subscribes one (SceneEntry::subscribe; streams.cpp implements it) and the
-/// scene calls it, under its wake_mu, with the whole list first and then
-/// every new one. The scene knows only this interface, never the streams.
+/// Where a scene delivers its wake list's changes: every Simulate and Tick
+/// stream subscribes one (SceneEntry::subscribe; StreamWakeSink in
+/// stream_reactor.h implements it) and the scene calls it, under its
+/// wake_mu, with the whole list first and then every new one. The scene
+/// knows only this interface, never the streams.
 class WakeSink {
  public:
   virtual ~WakeSink() = default;
@@ -94,13 +95,11 @@ struct SceneEntry {
   /// seconds beyond the simulation's clock (viewers do not own the clock).
   double view_time(double t, double lead) const;
   /// Recomputes the wake list when the engine says it may have changed and
-  /// hands a new snapshot to every Simulate stream of the scene.
+  /// hands a new snapshot to every sink subscribed (Simulate and Tick streams).
   void refresh_wake();
-  /// Registers a Simulate stream's sink and hands it the whole list.
+  /// Registers a stream's sink and hands it the whole list.
   void subscribe(const std::shared_ptr<WakeSink>& sink);
   void unsubscribe(const std::shared_ptr<WakeSink>& sink);
-  /// The wake list now (null before the first refresh_wake).
-  std::shared_ptr<const WakeSnapshot> wake_now();
 };
 
 }  // namespace voxvis::server

@@ -4,8 +4,11 @@
 #pragma once
 
 #include <atomic>
+#include <functional>
+#include <memory>
 #include <mutex>
 #include <string>
+#include <utility>
 
 #include <grpcpp/grpcpp.h>
 
@@ -15,19 +18,38 @@
 
 namespace voxvis::server {
 
-/// A wake list for a stream that last sent `sent` (null: nothing yet): the
-/// whole of `now` the first time, else the ids that joined and left.
-inline void wake_to_proto(const WakeSnapshot& now, const WakeSnapshot* sent, v1::WakeList* w) {
-  w->set_version(now.version);
-  w->set_size(static_cast<std::uint32_t>(now.ids.size()));
-  if (sent == nullptr) {
-    w->set_full(true);
-    add_ids(now.ids, w->mutable_ids());
-  } else {
-    difference(now.ids, sent->ids, w->mutable_woken());
-    difference(sent->ids, now.ids, w->mutable_slept());
+/// A stream's end of its scene's wake list (WakeSink, scene_entry.h), the
+/// one way Simulate and Tick streams get it: keeps the latest list, and
+/// hands each change to `on_change` when given (Simulate writes every
+/// change at once; Tick writes latest() with its next answer). Subscribed
+/// from a job of the scene's strand, never a reaction: subscribing reads the
+/// engine's wake set. `on_change` runs under the scene's wake lock and this
+/// sink's; detach() before the stream goes.
+class StreamWakeSink final : public WakeSink {
+ public:
+  using OnChange = std::function<void(const std::shared_ptr<const WakeSnapshot>&)>;
+  explicit StreamWakeSink(OnChange on_change = {}) : on_change_(std::move(on_change)) {}
+  void wake_changed(std::shared_ptr<const WakeSnapshot> snap) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    latest_ = std::move(snap);
+    if (on_change_) on_change_(latest_);
   }
-}
+  /// The list last handed over; null before the subscription.
+  std::shared_ptr<const WakeSnapshot> latest() {
+    std::lock_guard<std::mutex> lock(mu_);
+    return latest_;
+  }
+  /// From here on `on_change` is not called (the stream is going).
+  void detach() {
+    std::lock_guard<std::mutex> lock(mu_);
+    on_change_ = nullptr;
+  }
+
+ private:
+  std::mutex mu_;
+  OnChange on_change_;                          // Guarded by mu_.
+  std::shared_ptr<const WakeSnapshot> latest_;  // Guarded by mu_.
+};
 
 // ---------------------------------------------------------------------------
 // What both streams share: admission (token, registration for shutdown), raw

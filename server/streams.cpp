@@ -17,6 +17,7 @@
 #include "calls.h"
 #include "convert.h"
 #include "frame_answer.h"
+#include "ids.h"
 #include "stream_reactor.h"
 
 namespace voxvis::server {
@@ -212,45 +213,27 @@ class ViewReactor final
 // Wake lists are latest-wins: a delta is taken at write time against the
 // last list written.
 
-class SimReactor;
-
-/// A Simulate stream's end of its scene's wake list (scene_entry.h): hands
-/// each list to the stream until the stream is done, then nothing.
-class StreamWakeSink final : public WakeSink {
- public:
-  explicit StreamWakeSink(SimReactor* reactor) : reactor_(reactor) {}
-  void wake_changed(std::shared_ptr<const WakeSnapshot> snap) override;
-  /// From here on the scene's calls reach no stream (the stream is going).
-  void detach() {
-    std::lock_guard<std::mutex> lock(mu_);
-    reactor_ = nullptr;
-  }
-
- private:
-  std::mutex mu_;
-  SimReactor* reactor_;  // Guarded by mu_.
-};
-
 class SimReactor final
     : public StreamReactor<v1::SimulateRequest, v1::SimulateResponse, SimReactor> {
   friend class StreamReactor<v1::SimulateRequest, v1::SimulateResponse, SimReactor>;
 
  public:
   SimReactor(Service* svc, grpc::CallbackServerContext* ctx) : StreamReactor(svc, "Simulate") {
-    sink_ = std::make_shared<StreamWakeSink>(this);
+    sink_ = std::make_shared<StreamWakeSink>([this](const auto& snap) { on_wake(snap); });
     const grpc::Status admitted = admit(ctx, Role::Simulation);
     std::lock_guard<std::mutex> lock(mu_);
     if (!admitted.ok()) stop_locked(admitted);
     advance_locked();  // Starts the first read.
   }
 
-  void on_wake(std::shared_ptr<const WakeSnapshot> snap) {
+
+ private:
+  void on_wake(const std::shared_ptr<const WakeSnapshot>& snap) {
     std::lock_guard<std::mutex> lock(mu_);
-    wake_latest_ = std::move(snap);
+    wake_latest_ = snap;
     advance_locked();
   }
 
- private:
   void on_read_locked(bool ok, const grpc::Status& parsed) {
     reading_ = false;
     if (!ok) {
@@ -324,7 +307,7 @@ class SimReactor final
     v1::MoveAck ack;
     ack.set_seq(seq);
     ack.set_applied(report.applied);
-    for (ObjectId id : report.too_fast) ack.add_too_fast(id);
+    put_ids(report.too_fast, ack.mutable_too_fast());
     ack.set_t(at);
     job_done(std::move(ack), grpc::Status::OK);
   }
@@ -356,7 +339,7 @@ class SimReactor final
         start_write_locked();
       } else if (wake_latest_ && wake_latest_ != wake_sent_ && !stopping_) {
         auto& w = write_.fresh();
-        wake_to_proto(*wake_latest_, wake_sent_.get(), w.mutable_wake());
+        put_wake(wake_latest_->version, wake_latest_->ids, wake_sent_ ? &wake_sent_->ids : nullptr, w.mutable_wake());
         wake_sent_ = wake_latest_;
         start_write_locked();
       }
@@ -382,11 +365,6 @@ class SimReactor final
   std::shared_ptr<const WakeSnapshot> wake_latest_, wake_sent_;  // Guarded by mu_.
   bool reading_ = false, applying_ = false, eof_ = false;  // Guarded by mu_.
 };
-
-void StreamWakeSink::wake_changed(std::shared_ptr<const WakeSnapshot> snap) {
-  std::lock_guard<std::mutex> lock(mu_);
-  if (reactor_) reactor_->on_wake(std::move(snap));
-}
 
 grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>* new_view_stream(
     Service* svc, grpc::CallbackServerContext* ctx) {

@@ -28,6 +28,7 @@
 #include <vector>
 
 #include "frame_answer.h"
+#include "ids.h"
 #include "stream_reactor.h"
 
 namespace voxvis::server {
@@ -107,6 +108,7 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
     bool first = false;
     if (grpc::Status s = accept_sequence_locked(r.scene_id(), r.encoding(), &first, "tick", r.tick(), r.t()); !s.ok())
       return s;
+    if (first) subscribe_wake_locked();
     if (static_cast<std::size_t>(r.viewers_size()) > kMaxTickViewers)
       return invalid(Status::Error("viewers", "at most " + std::to_string(kMaxTickViewers) + " a tick, got " +
                                                   std::to_string(r.viewers_size())));
@@ -170,6 +172,26 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
     }
     pending_ = std::move(p);
     return grpc::Status::OK;
+  }
+
+  /// The scene's wake list comes to sink_ from a job of the scene's strand,
+  /// ahead of the first tick's moves; the first tick waits for it as for
+  /// moves, so that its answer carries the whole list.
+  void subscribe_wake_locked() {
+    ++moves_in_flight_;
+    ++jobs_;
+    entry_->strand->post([this, entry = entry_, sink = sink_](Scratch&) {
+      if (!entry->deleted.load()) entry->subscribe(sink);
+      bool del;
+      {
+        std::lock_guard<std::mutex> lock(mu_);
+        --moves_in_flight_;
+        resume_read_locked();
+        advance_locked();
+        del = end_job_locked();
+      }
+      if (del) release();
+    });
   }
 
   /// The moves go to the scene's strand now, in order: a replaced tick's
@@ -345,7 +367,7 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
     moves_applied_ = 0;
     std::sort(too_fast_.begin(), too_fast_.end());
     too_fast_.erase(std::unique(too_fast_.begin(), too_fast_.end()), too_fast_.end());
-    add_ids(too_fast_, w.mutable_too_fast());
+    put_ids(too_fast_, w.mutable_too_fast());
     too_fast_.clear();
     write_wake_locked();
     w.set_server_us(latency * 1e6);
@@ -356,9 +378,9 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
 
   /// The scene's wake list, when it changed since the last one written.
   void write_wake_locked() {
-    std::shared_ptr<const WakeSnapshot> now = entry_->wake_now();
+    std::shared_ptr<const WakeSnapshot> now = sink_->latest();
     if (!now || now == wake_sent_ || (wake_sent_ && now->ids == wake_sent_->ids)) return;
-    wake_to_proto(*now, wake_sent_.get(), write_.get().mutable_wake());
+    put_wake(now->version, now->ids, wake_sent_ ? &wake_sent_->ids : nullptr, write_.get().mutable_wake());
     wake_sent_ = std::move(now);
   }
 
@@ -370,6 +392,7 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
 
   void on_release() {
     if (!entry_) return;
+    entry_->unsubscribe(sink_);
     for (auto& [id, v] : viewers_) {
       svc_->release_viewer(client_, entry_, v.engine);
       count_viewers_locked(-1);
@@ -380,7 +403,7 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
   std::optional<Pending> pending_;  // Guarded by mu_.
   std::vector<std::uint64_t> left_;  // Guarded by mu_: ids to drop when the next tick starts.
   std::uint32_t skipped_ = 0;       // Guarded by mu_.
-  int moves_in_flight_ = 0;         // Guarded by mu_: batches posted to the strand, not yet applied.
+  int moves_in_flight_ = 0;         // Guarded by mu_: jobs posted to the strand (batches, the subscription), not yet run.
   std::uint32_t moves_applied_ = 0;  // Guarded by mu_: since the last answer written.
   std::vector<ObjectId> too_fast_;   // Guarded by mu_: the same.
   std::vector<std::pair<double, std::vector<Move>>> held_moves_;  // Guarded by mu_: sent while a tick computed.
@@ -395,6 +418,7 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
   std::vector<std::pair<std::uint64_t, int>> ids_;  // Guarded by mu_: accept_locked's.
   std::vector<std::size_t> run_;    // Guarded by mu_: start_tick_locked's.
   std::vector<std::vector<Entry>> spare_entries_;  // Guarded by mu_: see recycle_locked.
+  std::shared_ptr<StreamWakeSink> sink_ = std::make_shared<StreamWakeSink>();  // The scene's wake list.
   std::shared_ptr<const WakeSnapshot> wake_sent_;  // Guarded by mu_.
 };
 

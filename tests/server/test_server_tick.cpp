@@ -14,7 +14,7 @@
 
 #include <gtest/gtest.h>
 
-#include "convert.h"
+#include "ids.h"
 #include "scenes.h"
 #include "server_process.h"
 #include "voxvis/client.h"
@@ -430,7 +430,7 @@ TEST(TickStream, IdSetsRoundTripInTheSmallerForm) {
       next += 1 + static_cast<ObjectId>(rng.uniform(0.0, 1.0 / density));
     }
     v1::IdSet set;
-    server::ids_to_proto(ids, &set);
+    server::put_ids(ids, &set);
     std::vector<ObjectId> back;
     std::string why;
     ASSERT_TRUE(client::ids_from_proto(set, &back, &why)) << why;
