@@ -1,10 +1,10 @@
 #include "calls.h"
 
+#include <algorithm>
+
 #include <grpcpp/impl/codegen/proto_utils.h>
 #include <grpcpp/support/proto_buffer_reader.h>
 
-#include "scene_entry.h"
-#include "store.h"
 #include "voxvis/v1/voxvis.pb.h"
 
 namespace voxvis::server {
@@ -44,6 +44,14 @@ grpc::Status malformed(const std::string& type, std::size_t bytes) {
                                               " bytes)"));
 }
 
+bool valid_scene_id(std::string_view id) {
+  if (id.empty() || id.size() > 64 || id.front() == '.') return false;
+  return std::all_of(id.begin(), id.end(), [](char c) {
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+           c == '.' || c == '_' || c == '-';
+  });
+}
+
 grpc::Status check_scene_id(const std::string& id) {
   if (valid_scene_id(id)) return grpc::Status::OK;
   return invalid(Status::Error("scene_id", "must be 1-64 characters from [A-Za-z0-9._-], not "
@@ -55,8 +63,8 @@ grpc::Status no_scene(const std::string& id) {
   return grpc::Status(grpc::StatusCode::NOT_FOUND, "scene_id: no scene '" + id + "'");
 }
 
-grpc::Status deleted(const SceneEntry& e) {
-  return grpc::Status(grpc::StatusCode::NOT_FOUND, "scene '" + e.id + "' was deleted");
+grpc::Status deleted(const std::string& scene_id) {
+  return grpc::Status(grpc::StatusCode::NOT_FOUND, "scene '" + scene_id + "' was deleted");
 }
 
 grpc::Status shutting_down_status() {

@@ -19,6 +19,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <google/protobuf/arena.h>
@@ -28,19 +29,20 @@
 
 namespace voxvis::server {
 
-struct SceneEntry;
-
 /// INVALID_ARGUMENT: "field: message" as text, and a BadRequest naming the
 /// field in the details.
 grpc::Status invalid(const Status& s);
 /// INVALID_ARGUMENT for bytes that are not a `type` message.
 grpc::Status malformed(const std::string& type, std::size_t bytes);
+/// Scene ids: 1-64 characters from [A-Za-z0-9._-], not starting with '.'
+/// (the store's file names, too).
+bool valid_scene_id(std::string_view id);
 /// A request's scene id, checked before any message could echo it.
 grpc::Status check_scene_id(const std::string& id);
 /// NOT_FOUND for a (valid, hence short) scene id.
 grpc::Status no_scene(const std::string& id);
 /// NOT_FOUND for a scene deleted while the call was under way.
-grpc::Status deleted(const SceneEntry& e);
+grpc::Status deleted(const std::string& scene_id);
 grpc::Status shutting_down_status();
 
 /// Parses a raw request; false when the bytes are not a message of its type.

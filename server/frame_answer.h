@@ -1,4 +1,4 @@
-// frame_answer.h — a served frame (Service::serve_frame) as its call's
+// frame_answer.h — a served frame (Serving::serve_frame) as its call's
 // answer: a GetPvsResponse, a ViewResponse or a Tick stream's TickAnswer.
 // The PVS, its delta and the wake go out through ids.h (repeated uint32
 // fields for GetPvs and View, IdSets for Tick); everything else is the same

@@ -37,7 +37,7 @@ class WakeSink {
 
 /// The engine's viewer of a call that keeps one across frames (a View
 /// stream's, each viewer of a Tick stream), added by its first frame
-/// (Service::serve_frame).
+/// (Serving::serve_frame).
 struct FrameViewer {
   bool added = false;  ///< The engine's viewer exists.
   ViewerId id = 0;

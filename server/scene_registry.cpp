@@ -320,4 +320,29 @@ void SceneRegistry::save_positions() {
   }
 }
 
+void SceneRegistry::add_misplaced(const std::string& id, const std::string& owner) {
+  std::lock_guard<std::mutex> lock(misplaced_mu_);
+  misplaced_[id] = owner;
+}
+
+std::map<std::string, std::string> SceneRegistry::misplaced() const {
+  std::lock_guard<std::mutex> lock(misplaced_mu_);
+  return misplaced_;
+}
+
+bool SceneRegistry::is_misplaced(const std::string& id) const {
+  std::lock_guard<std::mutex> lock(misplaced_mu_);
+  return misplaced_.count(id) > 0;
+}
+
+grpc::Status SceneRegistry::remove_misplaced(const std::string& id) {
+  std::lock_guard<std::mutex> lock(misplaced_mu_);
+  if (!misplaced_.count(id)) return grpc::Status(grpc::StatusCode::NOT_FOUND, "not kept");
+  if (Status rm = store_.remove_scene(id); !rm)
+    return grpc::Status(grpc::StatusCode::INTERNAL, "cannot remove the scene's files: " + rm.str());
+  misplaced_.erase(id);
+  log_("deleted scene '" + id + "' (kept for another shard)");
+  return grpc::Status::OK;
+}
+
 }  // namespace voxvis::server

@@ -1,6 +1,7 @@
 // scene_registry.h — the scenes a server serves: creating (building within
 // the memory budget, storing), loading at start, deleting, saving the
-// dynamic objects' positions, and finding them by id.
+// dynamic objects' positions, finding them by id, and keeping the scenes of
+// the data directory that other shards own.
 //
 // A scene's id is taken from the moment its build is admitted until its
 // deletion has removed its files and metrics: a CreateScene and a
@@ -101,6 +102,18 @@ class SceneRegistry {
   /// the last save.
   void save_positions();
 
+  /// Records a scene of the data directory that another shard owns: kept on
+  /// disk, not served; listed, exported and deleted (ListScenes,
+  /// ExportScene, DeleteScene) so that `voxvis rebalance` can move it. Call
+  /// before serving.
+  void add_misplaced(const std::string& id, const std::string& owner);
+  /// The scenes kept for other shards: id -> owner.
+  std::map<std::string, std::string> misplaced() const;
+  bool is_misplaced(const std::string& id) const;
+  /// Deletes a scene kept for another shard with its files: NOT_FOUND when
+  /// none has the id, INTERNAL when its files remain (it stays kept then).
+  grpc::Status remove_misplaced(const std::string& id);
+
  private:
   /// OK when no scene has or is taking the id: else ALREADY_EXISTS, or
   /// ABORTED while it is being deleted.
@@ -122,6 +135,9 @@ class SceneRegistry {
   std::uint64_t bytes_in_use_ = 0;                 // Guarded by mu_ (scenes and reserved).
 
   std::mutex store_mu_;  // Serializes position saves with scene deletion.
+
+  mutable std::mutex misplaced_mu_;
+  std::map<std::string, std::string> misplaced_;  // Guarded by misplaced_mu_: id -> owner.
 };
 
 }  // namespace voxvis::server

@@ -19,6 +19,7 @@
 #include <grpcpp/resource_quota.h>
 
 #include "auth.h"
+#include "calls.h"
 #include "cgroup_limits.h"
 #include "health.h"
 #include "metrics.h"

@@ -17,6 +17,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "calls.h"
 #include "voxvis/mesh.h"
 
 namespace voxvis::server {
@@ -304,14 +305,6 @@ std::string parse_positions(const std::string& text, double& t, std::vector<Move
 }
 
 }  // namespace
-
-bool valid_scene_id(std::string_view id) {
-  if (id.empty() || id.size() > 64 || id.front() == '.') return false;
-  return std::all_of(id.begin(), id.end(), [](char c) {
-    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
-           c == '.' || c == '_' || c == '-';
-  });
-}
 
 Status SceneStore::open(const std::string& dir) {
   const std::string scenes = scenes_dir(dir);

@@ -32,9 +32,6 @@
 
 namespace voxvis::server {
 
-/// Scene ids: 1-64 characters from [A-Za-z0-9._-], not starting with '.'.
-bool valid_scene_id(std::string_view id);
-
 struct StoredScene {
   std::string id;
   std::string json;  ///< voxvis-scene/1 text.

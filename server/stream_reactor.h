@@ -1,6 +1,6 @@
-// stream_reactor.h — what the streaming calls (View and Simulate in
-// streams.cpp, Tick in tick_stream.cpp) share: admission, raw messages,
-// stopping and lifetime.
+// stream_reactor.h — what the streaming calls (View, Simulate and Tick;
+// streams.h) share: admission, raw messages, stopping and lifetime, and the
+// sink through which a stream gets its scene's wake list.
 #pragma once
 
 #include <atomic>
@@ -14,7 +14,9 @@
 
 #include "calls.h"
 #include "convert.h"
-#include "service.h"
+#include "admission.h"
+#include "scene_entry.h"
+#include "serving.h"
 
 namespace voxvis::server {
 
@@ -94,7 +96,7 @@ class StreamReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::Byt
   }
 
   void OnDone() override {
-    if (registered_) svc_->remove_stream(this);
+    if (registered_) admission_.remove_stream(this);
     leave_call();
     self().on_done();
     bool del;
@@ -107,18 +109,19 @@ class StreamReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::Byt
   }
 
  protected:
-  StreamReactor(Service* svc, const char* method) : svc_(svc), method_(method) {}
+  StreamReactor(Admission& admission, Serving& serving, const char* method)
+      : admission_(admission), serving_(serving), method_(method) {}
 
   /// Checks the call's token and registers the stream. Call from the
   /// derived constructor without holding mu_ (the service's stream lock comes
   /// first in the lock order).
   grpc::Status admit(grpc::CallbackServerContext* ctx, Role role) {
     client_ = ctx->peer();
-    const grpc::Status auth = svc_->tokens().authorize(ctx, role);
-    registered_ = svc_->add_stream(this);
+    const grpc::Status auth = admission_.authorize(ctx, role);
+    registered_ = admission_.add_stream(this);
     if (!auth.ok()) return auth;
     if (!registered_) return shutting_down_status();
-    const grpc::Status busy = svc_->enter_call();
+    const grpc::Status busy = admission_.enter_call();
     in_call_ = busy.ok();
     return busy;
   }
@@ -135,7 +138,7 @@ class StreamReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::Byt
   void finish_locked() {
     finished_ = true;
     const grpc::Status s = stopping_ ? stop_status_ : grpc::Status::OK;
-    if (!s.ok() && s.error_code() != grpc::StatusCode::CANCELLED) svc_->count_error(method_, s);
+    if (!s.ok() && s.error_code() != grpc::StatusCode::CANCELLED) admission_.count_error(method_, s);
     this->Finish(s);
   }
 
@@ -154,7 +157,7 @@ class StreamReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::Byt
 
   /// Gives back the stream's place among the calls in progress, once.
   void leave_call() {
-    if (in_call_ && !left_call_.exchange(true)) svc_->leave_call();
+    if (in_call_ && !left_call_.exchange(true)) admission_.leave_call();
   }
 
   /// The scene id of a message: the first must name a valid one, later ones
@@ -212,8 +215,8 @@ class StreamReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::Byt
 
   /// Makes the first message's scene the stream's.
   grpc::Status find_scene_locked(const std::string& id) {
-    entry_ = svc_->find(id);
-    return entry_ ? grpc::Status::OK : svc_->missing(id);
+    entry_ = serving_.find(id);
+    return entry_ ? grpc::Status::OK : serving_.missing(id);
   }
 
   /// Writes write_ (one write in flight: the caller checked writing_).
@@ -226,7 +229,8 @@ class StreamReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::Byt
     StartWrite(&out_);
   }
 
-  Service* svc_;
+  Admission& admission_;
+  Serving& serving_;
   const char* method_;
   std::string client_;       // The connection's peer: the pool's admission key. Set in admit.
   bool registered_ = false;  // Written before any reaction can run.

@@ -1,7 +1,7 @@
 // tick_stream.cpp — the Tick stream: a game server's whole tick (moves and
 // every viewer's camera) in one message, every viewer answered in one.
 //
-// State machine (all under mu_, as View's in streams.cpp): a read is always
+// State machine (all under mu_, as View's in view_stream.cpp): a read is always
 // outstanding until the client closes or the stream stops. A request's moves
 // go to the scene's strand at once, in order (never skipped); its viewers
 // wait in pending_, where a newer request replaces them (latest tick wins;
@@ -47,9 +47,10 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
   friend class StreamReactor<v1::TickRequest, v1::TickResponse, TickReactor>;
 
  public:
-  TickReactor(Service* svc, grpc::CallbackServerContext* ctx) : StreamReactor(svc, "Tick") {
+  TickReactor(Admission& admission, Serving& serving, grpc::CallbackServerContext* ctx)
+      : StreamReactor(admission, serving, "Tick") {
     const grpc::Status admitted = admit(ctx, Role::Viewer);
-    may_move_ = admitted.ok() && svc->tokens().authorize(ctx, Role::Simulation).ok();
+    may_move_ = admitted.ok() && admission.authorize(ctx, Role::Simulation).ok();
     std::lock_guard<std::mutex> lock(mu_);
     open_locked(admitted);
   }
@@ -208,11 +209,11 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
         stopped = stopping_;
       }
       if (stopped) {
-        svc_->count_dropped();
+        admission_.count_dropped();
       } else if (entry->deleted.load()) {
-        status = deleted(*entry);
+        status = deleted(entry->id);
       } else {
-        status = svc_->apply_batch(*entry, t, moves, "", &report);
+        status = serving_.apply_batch(*entry, t, moves, "", &report);
       }
       bool del;
       {
@@ -257,7 +258,7 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
     for (std::uint64_t id : left_) {
       auto it = viewers_.find(id);
       if (it == viewers_.end()) continue;
-      svc_->release_viewer(client_, entry_, it->second.engine);
+      serving_.release_viewer(client_, entry_, it->second.engine);
       viewers_.erase(it);
       count_viewers_locked(-1);
     }
@@ -290,7 +291,7 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
     // stream outlives its jobs (jobs_), and entry_ is fixed by now.
     for (std::size_t i : run) {
       ++jobs_;
-      svc_->pool().submit(client_, [this, i](Scratch& scratch) { compute(*entry_, i, scratch); });
+      serving_.pool().submit(client_, [this, i](Scratch& scratch) { compute(*entry_, i, scratch); });
     }
   }
 
@@ -311,16 +312,16 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
     grpc::Status error;
     std::optional<FrameResult> check;  // Verify mode: a copy of the frame served.
     if (stopped) {
-      svc_->count_dropped();
+      admission_.count_dropped();
     } else {
       bool sample = false;
-      error = svc_->serve_frame(e, &entry.state->engine, entry.camera, tick_.t, scratch, &entry.result, &sample);
+      error = serving_.serve_frame(e, &entry.state->engine, entry.camera, tick_.t, scratch, &entry.result, &sample);
       if (error.ok() && sample) check.emplace(entry.result);
     }
     // As View's: what the check needs is copied before mu_ is released, after
     // which the tick may be written and the stream deleted (with its hold on
     // the scene: `keep` holds it for the check).
-    Service* const svc = svc_;
+    Serving* const serving = &serving_;
     const std::shared_ptr<SceneEntry> keep = check ? entry_ : nullptr;
     const std::uint64_t tick = tick_.tick;
     const Camera camera = entry.camera;
@@ -332,7 +333,7 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
       if (--outstanding_ == 0) finish_tick_locked();
       del = end_job_locked();
     }
-    if (check) svc->verify_served(*keep, viewer, tick, camera, *check);
+    if (check) serving->verify_served(*keep, viewer, tick, camera, *check);
     if (del) release();
   }
 
@@ -394,7 +395,7 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
     if (!entry_) return;
     entry_->unsubscribe(sink_);
     for (auto& [id, v] : viewers_) {
-      svc_->release_viewer(client_, entry_, v.engine);
+      serving_.release_viewer(client_, entry_, v.engine);
       count_viewers_locked(-1);
     }
   }
@@ -424,9 +425,9 @@ class TickReactor final : public StreamReactor<v1::TickRequest, v1::TickResponse
 
 }  // namespace
 
-grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>* new_tick_stream(Service* svc,
+grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>* new_tick_stream(Admission& admission, Serving& serving,
                                                                              grpc::CallbackServerContext* ctx) {
-  return new TickReactor(svc, ctx);
+  return new TickReactor(admission, serving, ctx);
 }
 
 }  // namespace voxvis::server

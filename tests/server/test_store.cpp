@@ -18,6 +18,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "calls.h"
 #include "store.h"
 
 namespace voxvis::server {
