@@ -11,7 +11,7 @@
 
 #include <CLI/CLI.hpp>
 
-#include "server.h"
+#include "voxvis/server/server.h"
 
 #ifndef VOXVIS_VERSION
 #define VOXVIS_VERSION "unknown"

@@ -35,9 +35,9 @@
 #include <gtest/gtest.h>
 
 #include "files.h"
+#include "voxvis/client.h"
 #include "voxvis/scene.h"
 #include "voxvis/types.h"
-#include "voxvis/client.h"
 #include "voxvis/v1/voxvis.grpc.pb.h"
 
 namespace voxvis::servertest {

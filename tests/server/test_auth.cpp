@@ -14,7 +14,7 @@
 #include <grpcpp/generic/generic_stub.h>
 #include <grpcpp/grpcpp.h>
 
-#include "auth.h"
+#include "serving/auth.h"
 
 namespace voxvis::server {
 namespace {

@@ -7,7 +7,7 @@
 
 #include <gtest/gtest.h>
 
-#include "cgroup_limits.h"
+#include "process/cgroup_limits.h"
 #include "server_process.h"
 
 namespace voxvis::server {

@@ -5,7 +5,7 @@
 #include <cmath>
 #include <limits>
 
-#include "convert.h"
+#include "wire/convert.h"
 
 namespace voxvis::server {
 namespace {

@@ -9,10 +9,10 @@
 #include <limits>
 #include <memory>
 
-#include "convert.h"
 #include "meshes.h"
 #include "voxvis/client.h"
 #include "voxvis/format.h"
+#include "wire/convert.h"
 
 namespace voxvis::server {
 namespace {

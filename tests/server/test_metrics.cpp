@@ -6,7 +6,7 @@
 #include <thread>
 #include <vector>
 
-#include "metrics.h"
+#include "scenes/metrics.h"
 #include "server_process.h"
 
 namespace voxvis::server {

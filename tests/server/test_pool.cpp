@@ -13,7 +13,7 @@
 #include <thread>
 #include <vector>
 
-#include "pool.h"
+#include "scenes/pool.h"
 
 namespace voxvis::server {
 namespace {

@@ -14,12 +14,12 @@
 
 #include <gtest/gtest.h>
 
-#include "ids.h"
 #include "scenes.h"
 #include "server_process.h"
 #include "voxvis/client.h"
 #include "voxvis/format.h"
 #include "voxvis/scene.h"
+#include "wire/ids.h"
 
 namespace voxvis::servertest {
 namespace {

@@ -13,10 +13,10 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include "metrics.h"
 #include "scenes.h"
+#include "scenes/metrics.h"
+#include "scenes/verifier.h"
 #include "server_process.h"
-#include "verifier.h"
 #include "voxvis/format.h"
 #include "voxvis/generate.h"
 #include "voxvis/raycast.h"

@@ -18,8 +18,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "calls.h"
-#include "store.h"
+#include "scenes/store.h"
+#include "wire/calls.h"
 
 namespace voxvis::server {
 namespace {
