@@ -6,6 +6,7 @@
 // near a pixel centre (docs/verify.md, "What a miss is").
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <deque>
@@ -118,11 +119,8 @@ std::string json_ids(const std::vector<ObjectId>& ids) {
   return s + "]";
 }
 
-std::string ms(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.3f", v);
-  return buf;
-}
+/// Milliseconds to the microsecond, as JSON (timings are never NaN).
+std::string ms(double v) { return number_text(std::round(v * 1000.0) / 1000.0); }
 
 /// A frame checked, its line not yet written: a region frame waits for the
 /// frames of its horizon (--horizon-frames), and every frame after it waits

@@ -7,11 +7,20 @@
 
 namespace voxvis {
 
-std::string number_text(double v) {
-  if (!std::isfinite(v)) return std::isnan(v) ? "nan" : (v > 0 ? "inf" : "-inf");
+void append_number_text(std::string& out, double v) {
+  if (!std::isfinite(v)) {
+    out += std::isnan(v) ? "nan" : (v > 0 ? "inf" : "-inf");
+    return;
+  }
   char buf[64];
   const auto r = std::to_chars(buf, buf + sizeof buf, v);
-  return std::string(buf, r.ptr);
+  out.append(buf, r.ptr);
+}
+
+std::string number_text(double v) {
+  std::string out;
+  append_number_text(out, v);
+  return out;
 }
 
 }  // namespace voxvis

@@ -17,10 +17,10 @@ inline void append_int(std::string& out, Int v) {
   out.append(buf, r.ptr);
 }
 
-/// JSON number text that parses back to exactly `v` (shortest round-trip
-/// form); null for non-finite values, which no voxvis format accepts.
-/// Negative zero is "-0.0": "-0" reads back as the integer 0, whose double
-/// is +0.
+/// JSON number text that parses back to exactly `v`: number_text's
+/// (shortest round-trip form) with JSON's two exceptions. Null for
+/// non-finite values, which no voxvis format accepts; negative zero is
+/// "-0.0", since "-0" reads back as the integer 0, whose double is +0.
 inline void append_number(std::string& out, double v) {
   if (!std::isfinite(v)) {
     out += "null";
@@ -30,9 +30,7 @@ inline void append_number(std::string& out, double v) {
     out += "-0.0";
     return;
   }
-  char buf[64];
-  const auto r = std::to_chars(buf, buf + sizeof buf, v);
-  out.append(buf, r.ptr);
+  append_number_text(out, v);
 }
 
 inline void append_vec3(std::string& out, const Vec3& v) {

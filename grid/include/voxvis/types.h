@@ -166,5 +166,8 @@ struct Status {
 /// ("0.1", "1e+308", "5e-324"), or "nan", "inf", "-inf": the one way every
 /// message and format of voxvis writes a number.
 std::string number_text(double v);
+/// Appends number_text(v) to `out`, without a string of its own (the
+/// formats' writers, which write numbers by the million).
+void append_number_text(std::string& out, double v);
 
 }  // namespace voxvis
