@@ -99,16 +99,7 @@ grpc::Status build(UnaryDeps& d, Call* r, const BuildControl& control) {
 /// (memory exhausted by a huge document, say): then the call ends INTERNAL
 /// and the server goes on.
 void build_job(UnaryDeps& d, grpc::CallbackServerContext* ctx, Call* r) {
-  if (ctx->IsCancelled()) {
-    d.admission.count_dropped();
-    r->finish(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled"));
-    return;
-  }
-  if (d.admission.shutting_down()) {
-    d.admission.count_dropped();
-    d.admission.finish_unary(r, "CreateScene", shutting_down_status());
-    return;
-  }
+  if (answered_unrun(d, ctx, r, "CreateScene")) return;
   const auto deadline = ctx->deadline();
   BuildControl control;
   control.cancelled = [&d, ctx, deadline] {

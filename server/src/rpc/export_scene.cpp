@@ -75,14 +75,10 @@ grpc::ServerUnaryReactor* export_scene(UnaryDeps& d, grpc::CallbackServerContext
                                                                                      in, out, &reactor);
   if (!r) return reactor;
   const std::string id = r->req.scene_id();
-  if (grpc::Status s = check_scene_id(id); !s.ok()) {
+  // A move's export (only_if_misplaced) of a scene this server serves: moves
+  // it acknowledges after the export would be lost with the copy.
+  if (grpc::Status s = check_move_step(d, id, r->req.only_if_misplaced()); !s.ok()) {
     d.admission.finish_unary(r, "ExportScene", s);
-    return reactor;
-  }
-  if (r->req.only_if_misplaced() && d.serving.find(id)) {
-    // A move's export of a scene this server serves: moves it acknowledges
-    // after the export would be lost with the copy.
-    d.admission.finish_unary(r, "ExportScene", d.config.shard.still_served(id));
     return reactor;
   }
   // Reading the files takes a while for a large scene: on the build thread.

@@ -16,16 +16,7 @@ using Call = TypedUnaryCall<v1::GetPvsRequest, v1::GetPvsResponse>;
 /// The pool job. Work nobody waits for any more is answered without running.
 void serve(UnaryDeps& d, grpc::CallbackServerContext* ctx, Call* r, SceneEntry& e, const Camera& camera, double t,
            Clock::time_point received, Scratch& scratch) {
-  if (ctx->IsCancelled()) {
-    d.admission.count_dropped();
-    r->finish(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled"));
-    return;
-  }
-  if (d.admission.shutting_down()) {
-    d.admission.count_dropped();
-    d.admission.finish_unary(r, "GetPvs", shutting_down_status());
-    return;
-  }
+  if (answered_unrun(d, ctx, r, "GetPvs")) return;
   FrameResult result;
   bool check = false;
   if (grpc::Status g = d.serving.serve_frame(e, nullptr, camera, t, scratch, &result, &check); !g.ok()) {

@@ -38,20 +38,36 @@ std::shared_ptr<SceneEntry> find_or_finish(UnaryDeps& d, UnaryCall* r, const cha
   return e;
 }
 
+grpc::Status check_move_step(UnaryDeps& d, const std::string& id, bool only_if_misplaced) {
+  if (grpc::Status s = check_scene_id(id); !s.ok()) return s;
+  if (only_if_misplaced && d.serving.find(id)) return d.config.shard.still_served(id);
+  return grpc::Status::OK;
+}
+
+bool answered_unrun(UnaryDeps& d, grpc::CallbackServerContext* ctx, UnaryCall* r, const char* method) {
+  if (ctx->IsCancelled()) {
+    d.admission.count_dropped();
+    r->finish(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled"));
+    return true;
+  }
+  if (d.admission.shutting_down()) {
+    d.admission.count_dropped();
+    d.admission.finish_unary(r, method, shutting_down_status());
+    return true;
+  }
+  return false;
+}
+
 grpc::ServerUnaryReactor* delete_scene(UnaryDeps& d, grpc::CallbackServerContext* ctx, const Raw* in, Raw* out) {
   grpc::ServerUnaryReactor* reactor = nullptr;
   auto* r = d.admission.start_unary<v1::DeleteSceneRequest, v1::DeleteSceneResponse>("DeleteScene", ctx, Role::Admin,
                                                                                       in, out, &reactor);
   if (!r) return reactor;
   const std::string& id = r->req.scene_id();
-  if (grpc::Status s = check_scene_id(id); !s.ok()) {
+  // The end of a move (only_if_misplaced): a scene this server serves
+  // (after a restart made it the owner again) keeps every move it acknowledged.
+  if (grpc::Status s = check_move_step(d, id, r->req.only_if_misplaced()); !s.ok()) {
     d.admission.finish_unary(r, "DeleteScene", s);
-    return reactor;
-  }
-  if (r->req.only_if_misplaced() && d.serving.find(id)) {
-    // The end of a move: a scene this server serves (after a restart made it
-    // the owner again) keeps every move it acknowledged.
-    d.admission.finish_unary(r, "DeleteScene", d.config.shard.still_served(id));
     return reactor;
   }
   grpc::Status g = d.registry.remove(id, [&d](SceneEntry& e) { d.admission.stop_streams(e, deleted(e.id)); });

@@ -47,5 +47,14 @@ void fill_info(const SceneEntry& e, v1::SceneInfo* out);
 /// The scene `id` names, or null after finishing the call (INVALID_ARGUMENT
 /// for an invalid id, Serving::missing's status).
 std::shared_ptr<SceneEntry> find_or_finish(UnaryDeps& d, UnaryCall* r, const char* method, const std::string& id);
+/// The scene id of a step of `voxvis rebalance` (DeleteScene, ExportScene):
+/// INVALID_ARGUMENT when invalid; with `only_if_misplaced`, FAILED_PRECONDITION
+/// when this server serves the scene (ShardIdentity::still_served: the
+/// step would lose moves it acknowledged); else OK.
+grpc::Status check_move_step(UnaryDeps& d, const std::string& id, bool only_if_misplaced);
+/// At the start of a queued call's job: answers the call without running it
+/// when nobody waits for it any more (CANCELLED) or the server is stopping
+/// (UNAVAILABLE), counting it dropped, and returns true; else false.
+bool answered_unrun(UnaryDeps& d, grpc::CallbackServerContext* ctx, UnaryCall* r, const char* method);
 
 }  // namespace voxvis::server
