@@ -9,6 +9,7 @@
 #include <glm/geometric.hpp>
 
 #include "numeric.h"
+#include "occludee_corners.h"
 #include "occlusion_tile.h"
 #include "voxvis/assert.h"
 
@@ -592,9 +593,11 @@ bool OcclusionBuffer::hides(const Vec3& rel, const Vec3& size, double tol, bool 
   // The box's X, Y and Z ranges bound its corners' slopes X/Z and Y/Z:
   // with Z in [zlo, zhi], zlo > 0, X/Z lies in [Xlo / (Xlo < 0 ? zlo : zhi),
   // Xhi / (Xhi > 0 ? zlo : zhi)] (a superset of the corners' hull).
+  BoxCorners box;
+  box.X0 = X0, box.Y0 = Y0, box.Z0 = Z0;
   double xlo = X0, xhi = X0, ylo = Y0, yhi = Y0, zlo = Z0, zhi = Z0;
   for (int a = 0; a < 3; ++a) {
-    const double ex = r_[a] * size[a], ey = u_[a] * size[a], ez = f_[a] * size[a];
+    const double ex = box.ex[a] = r_[a] * size[a], ey = box.ey[a] = u_[a] * size[a], ez = box.ez[a] = f_[a] * size[a];
     (ex < 0.0 ? xlo : xhi) += ex;
     (ey < 0.0 ? ylo : yhi) += ey;
     (ez < 0.0 ? zlo : zhi) += ez;
@@ -606,16 +609,11 @@ bool OcclusionBuffer::hides(const Vec3& rel, const Vec3& size, double tol, bool 
     // The corners' own slopes (all beyond the near plane): the hull of the
     // box's projection, where the superset above can reach far beyond it (a
     // long box seen at a slant: its far top corner's height over its
-    // nearest depth).
-    x0 = y0 = kInf;
-    x1 = y1 = -kInf;
-    for (int k = 0; k < 8; ++k) {
-      double X = X0, Y = Y0, Z = Z0;
-      for (int a = 0; a < 3; ++a)
-        if (k >> a & 1) X += r_[a] * size[a], Y += u_[a] * size[a], Z += f_[a] * size[a];
-      const double iz = 1.0 / Z;
-      x0 = least(x0, X * iz), x1 = greatest(x1, X * iz);
-      y0 = least(y0, Y * iz), y1 = greatest(y1, Y * iz);
+    // nearest depth). Four corners to an instruction where the CPU can.
+    if (kernel == BufferKernel::Auto && cpu_has_avx2()) {
+      corner_slopes_avx2(box, &x0, &x1, &y0, &y1);
+    } else {
+      corner_slopes_scalar(box, &x0, &x1, &y0, &y1);
     }
   }
   // A corner's position is good to tol (world units) in X, Y and Z: its

@@ -2,8 +2,9 @@
 // the scalar and AVX2 kernels write the same bits, job by job and over whole
 // buffers of every kind of occluder; the pixels past the image's sides are
 // never written and never lower a tile's bound; a frame clears what the last
-// one wrote. (The bounds' conservativeness against exact rays is tested in
-// test_occlusion_buffer.cpp with both kernels.)
+// one wrote; the occludee test's corner slopes agree between their two
+// kernels (occludee_corners.h). (The bounds' conservativeness against exact
+// rays is tested in test_occlusion_buffer.cpp with both kernels.)
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -15,6 +16,7 @@
 
 #include "engine_check.h"
 #include "frustum.h"
+#include "occludee_corners.h"
 #include "occlusion_buffer.h"
 #include "occlusion_tile.h"
 #include "raycast.h"
@@ -240,6 +242,70 @@ TEST(OcclusionTile, ANewFrameOfTheSameSizeStartsEmpty) {
   EXPECT_TRUE(ob.render_box(Vec3(-0.5, -0.5, -6.0), Vec3(0.5, 0.5, -5.0)));
   EXPECT_FALSE(ob.hides_world(Vec3(-3.0, -3.0, -9.0), Vec3(3.0, 3.0, -8.0)));
   EXPECT_TRUE(ob.hides_world(Vec3(-0.1, -0.1, -9.0), Vec3(0.1, 0.1, -8.0)));
+}
+
+// The occludee test's corner slopes (occludee_corners.h): the AVX2 kernel
+// gives the scalar reference's values, and both hold every corner's slope,
+// computed here on its own, with NaN slopes passed over.
+TEST(OccludeeCorners, KernelsAgreeAndHoldEveryCorner) {
+  if (!detail::cpu_has_avx2()) GTEST_SKIP() << "this CPU has no AVX2: only the scalar kernel runs";
+  Rng rng(21);
+  for (int trial = 0; trial < 20000; ++trial) {
+    detail::BoxCorners b;
+    const double mag = rng.log_uniform(1e-6, 1e12);
+    b.X0 = rng.uniform(-mag, mag), b.Y0 = rng.uniform(-mag, mag), b.Z0 = rng.log_uniform(1e-6, 1.0) * mag;
+    for (int a = 0; a < 3; ++a) {
+      b.ex[a] = rng.uniform(-mag, mag), b.ey[a] = rng.uniform(-mag, mag);
+      b.ez[a] = rng.uniform(0.0, mag);
+      if (trial % 7 == 0) b.ex[a] = b.ey[a] = 0.0;  // Flat and zero slopes.
+    }
+    if (trial % 11 == 0) b.Z0 = 0.0, b.X0 = 0.0;  // Corner 0 at 0 / 0: a NaN slope.
+    double s[4], v[4];
+    detail::corner_slopes_scalar(b, &s[0], &s[1], &s[2], &s[3]);
+    detail::corner_slopes_avx2(b, &v[0], &v[1], &v[2], &v[3]);
+    for (int q = 0; q < 4; ++q) ASSERT_EQ(s[q], v[q]) << "trial " << trial << " bound " << q;
+    for (int k = 0; k < 8; ++k) {
+      double X = b.X0, Y = b.Y0, Z = b.Z0;
+      for (int a = 0; a < 3; ++a)
+        if (k >> a & 1) X += b.ex[a], Y += b.ey[a], Z += b.ez[a];
+      const double iz = 1.0 / Z, x = X * iz, y = Y * iz;  // As hides() takes a slope (its margins cover the rounding).
+      ASSERT_TRUE(std::isnan(x) || (s[0] <= x && x <= s[1])) << "trial " << trial << " corner " << k;
+      ASSERT_TRUE(std::isnan(y) || (s[2] <= y && y <= s[3])) << "trial " << trial << " corner " << k;
+    }
+  }
+}
+
+// The occludee test as the engine asks it (fine: the corners' own hull),
+// with the AVX2 corner kernel and with the scalar one, on random buffers:
+// the same answer for every box.
+TEST(OccludeeCorners, HidesAnswersTheSameWithBothKernels) {
+  if (!detail::cpu_has_avx2()) GTEST_SKIP() << "this CPU has no AVX2: only the scalar kernel runs";
+  Rng rng(22);
+  int hidden = 0, asked = 0;
+  for (int trial = 0; trial < 30; ++trial) {
+    Camera cam;
+    cam.eye = rng.in_box(Vec3(-5), Vec3(5));
+    cam.dir = rng.unit_vector();
+    cam.up = rng.unit_vector();
+    if (!validate_camera(cam).ok) continue;
+    cam.fov_y_deg = rng.uniform(30.0, 120.0);
+    cam.aspect = rng.log_uniform(0.5, 2.0);
+    cam.near = rng.log_uniform(1e-3, 0.5);
+    const OcclusionBuffer a = render_random(cam, 160, BufferKernel::Auto, 200 + static_cast<std::uint64_t>(trial));
+    OcclusionBuffer b = a;
+    b.kernel = BufferKernel::Scalar;
+    const Vec3 f = glm::normalize(cam.dir);
+    for (int k = 0; k < 300; ++k) {
+      const Vec3 at = cam.eye + f * rng.uniform(1.0, 60.0) + rng.in_box(Vec3(-10.0), Vec3(10.0));
+      const Vec3 h = rng.in_box(Vec3(0.01), Vec3(3.0));
+      const bool hides = a.hides_world(at - h, at + h, true);
+      ASSERT_EQ(hides, b.hides_world(at - h, at + h, true)) << "trial " << trial << " box " << k;
+      hidden += hides ? 1 : 0;
+      ++asked;
+    }
+  }
+  EXPECT_GT(hidden, asked / 20);  // Enough boxes hidden for the comparison to mean something.
+  EXPECT_LT(hidden, asked);
 }
 
 }  // namespace
