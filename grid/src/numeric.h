@@ -2,6 +2,7 @@
 #pragma once
 
 #include <algorithm>
+#include <bit>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -28,14 +29,32 @@ inline std::uint64_t ticks() {
 #endif
 }
 
-/// One unit in the last place of 1.0.
 /// std::fmin(a, b) and std::fmax(a, b) where `a` is not NaN (a NaN `b`
 /// leaves `a`, as they do), without the library call they make at -O3 for
 /// their NaN rule. For the buffer's per-box and per-occluder loops.
 inline double least(double a, double b) { return b < a ? b : a; }
 inline double greatest(double a, double b) { return b > a ? b : a; }
 
+/// One unit in the last place of 1.0.
 inline constexpr double kUlp = std::numeric_limits<double>::epsilon();
+
+/// The largest float not above d (NaN for NaN): for every float m,
+/// static_cast<double>(m) > d exactly when m > float_at_or_below(d), so a
+/// loop over floats compares them with d in float (the occludee test's scan
+/// of tile bounds).
+inline float float_at_or_below(double d) {
+  constexpr double kMax = std::numeric_limits<float>::max();
+  constexpr float kInfF = std::numeric_limits<float>::infinity();
+  if (std::isnan(d)) return std::numeric_limits<float>::quiet_NaN();
+  if (d >= kMax) return d == std::numeric_limits<double>::infinity() ? kInfF : std::numeric_limits<float>::max();
+  if (d < -kMax) return -kInfF;
+  const float f = static_cast<float>(d);  // In range: rounds to one of its two neighbours.
+  if (!(static_cast<double>(f) > d)) return f;
+  // The float below f (finite, above -FLT_MAX), without a library call:
+  // one step of the magnitude's bits, and below a zero the least negative.
+  const std::uint32_t u = std::bit_cast<std::uint32_t>(f);
+  return std::bit_cast<float>(f > 0.0f ? u - 1u : f < 0.0f ? u + 1u : 0x80000001u);
+}
 
 /// Clamps a grid coordinate to [lo, hi] before converting it, so huge or
 /// far-away values never overflow the integer.

@@ -497,40 +497,50 @@ bool OcclusionBuffer::render_box_frame(const Vec3 axes[3], const Vec3& L, const 
 }
 
 bool OcclusionBuffer::rect_hidden(int i0, int i1, int j0, int j1, double w, OccludeeDepth* depth) const {
-  // Pixels are compared in float against w rounded up: a pixel above that
-  // is above w.
-  const float wf = depth ? 0.0f : round_up(w);
-  const bool avx2 = kernel == BufferKernel::Auto && cpu_has_avx2();
+  // A tile whose least bound is above w hides the rectangle's part in it
+  // and is passed over: most tiles of an occludee hidden behind a wall. For
+  // a float m, (double) m > w exactly when m > w_down, the largest float not
+  // above w, so the scan compares floats; the tiles it stops at are
+  // decided by tile_hides.
+  const float w_down = float_at_or_below(w);
+  const int tx0 = i0 / kTileW, tx1 = i1 / kTileW;
   for (int ty = j0 / kTileH; ty <= j1 / kTileH; ++ty) {
-    for (int tx = i0 / kTileW; tx <= i1 / kTileW; ++tx) {
-      const auto t = static_cast<std::size_t>(ty) * static_cast<std::size_t>(tw_) + static_cast<std::size_t>(tx);
-      const double tmin = static_cast<double>(tile_min_[t]);
-      if (tmin > w) continue;
-      const int I0 = tx * kTileW, J0 = ty * kTileH;
-      const int pi0 = std::max(i0, I0), pi1 = std::min(i1, I0 + kTileW - 1);
-      const int pj0 = std::max(j0, J0), pj1 = std::min(j1, J0 + kTileH - 1);
-      const float* tile = px_.data() + t * kTilePixels;
-      if (!depth) {
-        // Every pixel of the tile at or below the occludee's bound: one of
-        // them lies in the rectangle, and does not hide it.
-        if (!(static_cast<double>(tile_max_[t]) > w)) return false;
-        const int c0 = pi0 - I0, c1 = pi1 - I0, r0 = pj0 - J0, r1 = pj1 - J0;
-        if (!(avx2 ? tile_above_avx2(tile, c0, c1, r0, r1, wf) : tile_above_scalar(tile, c0, c1, r0, r1, wf)))
-          return false;
-        continue;
-      }
-      // With the occludee's planes: its largest reciprocal depth over the
-      // tile's part of the rectangle, then over each pixel that cannot
-      // decide.
-      entry_planes(depth);
-      const double wt = depth->bound(w, pi0, pi1, pj0, pj1);
-      if (tmin > wt) continue;
-      for (int j = pj0; j <= pj1; ++j) {
-        for (int i = pi0; i <= pi1; ++i) {
-          const double v = static_cast<double>(tile[(j - J0) * kTileW + (i - I0)]);
-          if (!(v > wt) && !(v > depth->bound(wt, i, i, j, j))) return false;
-        }
-      }
+    const std::size_t row = static_cast<std::size_t>(ty) * static_cast<std::size_t>(tw_);
+    const float* mins = tile_min_.data() + row;
+    for (int tx = tx0; tx <= tx1; ++tx) {
+      if (mins[tx] > w_down) continue;
+      if (!tile_hides(row + static_cast<std::size_t>(tx), tx * kTileW, ty * kTileH, i0, i1, j0, j1, w, depth))
+        return false;
+    }
+  }
+  return true;
+}
+
+bool OcclusionBuffer::tile_hides(std::size_t t, int I0, int J0, int i0, int i1, int j0, int j1, double w,
+                                 OccludeeDepth* depth) const {
+  const int pi0 = std::max(i0, I0), pi1 = std::min(i1, I0 + kTileW - 1);
+  const int pj0 = std::max(j0, J0), pj1 = std::min(j1, J0 + kTileH - 1);
+  const float* tile = px_.data() + t * kTilePixels;
+  if (!depth) {
+    // Every pixel of the tile at or below the occludee's bound: one of
+    // them lies in the rectangle, and does not hide it.
+    if (!(static_cast<double>(tile_max_[t]) > w)) return false;
+    // Pixels are compared in float against w rounded up: a pixel above that
+    // is above w.
+    const float wf = round_up(w);
+    const int c0 = pi0 - I0, c1 = pi1 - I0, r0 = pj0 - J0, r1 = pj1 - J0;
+    const bool avx2 = kernel == BufferKernel::Auto && cpu_has_avx2();
+    return avx2 ? tile_above_avx2(tile, c0, c1, r0, r1, wf) : tile_above_scalar(tile, c0, c1, r0, r1, wf);
+  }
+  // With the occludee's planes: its largest reciprocal depth over the
+  // tile's part of the rectangle, then over each pixel that cannot decide.
+  entry_planes(depth);
+  const double wt = depth->bound(w, pi0, pi1, pj0, pj1);
+  if (static_cast<double>(tile_min_[t]) > wt) return true;
+  for (int j = pj0; j <= pj1; ++j) {
+    for (int i = pi0; i <= pi1; ++i) {
+      const double v = static_cast<double>(tile[(j - J0) * kTileW + (i - I0)]);
+      if (!(v > wt) && !(v > depth->bound(wt, i, i, j, j))) return false;
     }
   }
   return true;

@@ -235,6 +235,10 @@ class OcclusionBuffer {
   /// Whether every pixel of [i0..i1] x [j0..j1] holds a bound above w
   /// (near / depth) and above the occludee's `depth` over that pixel.
   bool rect_hidden(int i0, int i1, int j0, int j1, double w, OccludeeDepth* depth) const;
+  /// rect_hidden's step for tile t (first pixel (I0, J0)), whose least
+  /// bound is not above w: whether its pixels in the rectangle hide the
+  /// occludee.
+  bool tile_hides(std::size_t t, int I0, int J0, int i0, int i1, int j0, int j1, double w, OccludeeDepth* depth) const;
   /// Derives the entry planes of the box of `depth` if not done yet: over
   /// a pixel, no point of the box lies nearer than every plane's bound there
   /// allows.

@@ -5,7 +5,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <string>
+#include <vector>
 
 #include <glm/geometric.hpp>
 
@@ -31,6 +33,43 @@ OcclusionBuffer begin(const Camera& c, int width) {
   OcclusionBuffer ob;
   ob.begin(detail::make_world_frustum(c), width);
   return ob;
+}
+
+// The occludee test's scan compares tile bounds in float against
+// float_at_or_below(w) (numeric.h) instead of converting each to double:
+// the same answer for every float and double, at the edges of the float
+// range, at floats, between them, and for NaN and the infinities.
+TEST(OcclusionBuffer, FloatAtOrBelowComparesAsTheDoubleDoes) {
+  Rng rng(31);
+  const float fmax = std::numeric_limits<float>::max(), finf = std::numeric_limits<float>::infinity();
+  const double dinf = std::numeric_limits<double>::infinity(), dnan = std::numeric_limits<double>::quiet_NaN();
+  std::vector<float> ms = {0.0f, -0.0f, 1.0f, fmax, -fmax, finf, -finf, std::numeric_limits<float>::denorm_min()};
+  std::vector<double> ds = {0.0, -0.0, 1.0, double(fmax), -double(fmax), 2.0 * double(fmax), -2.0 * double(fmax),
+                            dinf, -dinf, dnan, 1e-50, -1e-50, double(std::nextafter(1.0f, 2.0f)) - 1e-12};
+  for (int k = 0; k < 20000; ++k) {
+    const float m = static_cast<float>(rng.log_uniform(1e-40, 1e38)) * (rng.uniform(0.0, 1.0) < 0.1 ? -1.0f : 1.0f);
+    ms.push_back(m);
+    ds.push_back(static_cast<double>(m));                                    // A float itself,
+    ds.push_back(static_cast<double>(m) * (1.0 + rng.uniform(-1e-7, 1e-7)));  // or near one.
+  }
+  int above = 0;
+  for (std::size_t k = 0; k < ds.size(); ++k) {
+    const float d_down = detail::float_at_or_below(ds[k]);
+    std::vector<float> near_d;  // The floats around d: where the two compares could part.
+    if (std::fabs(ds[k]) <= double(fmax)) {
+      const float f = static_cast<float>(ds[k]);
+      near_d = {f, std::nextafter(f, finf), std::nextafter(f, -finf)};
+    }
+    for (std::size_t q = 0; q < 16 + near_d.size(); ++q) {
+      const float m = q < 16 ? ms[(k * 16 + q) % ms.size()] : near_d[q - 16];
+      const bool want = static_cast<double>(m) > ds[k];
+      ASSERT_EQ(want, m > d_down) << "m " << m << " d " << ds[k];
+      above += want ? 1 : 0;
+    }
+    ASSERT_EQ(std::isnan(ds[k]), std::isnan(d_down));
+    ASSERT_TRUE(std::isnan(ds[k]) || static_cast<double>(d_down) <= ds[k]) << ds[k];
+  }
+  EXPECT_GT(above, 1000);
 }
 
 TEST(OcclusionBuffer, SphereInFrontOfABoxHidesIt) {
