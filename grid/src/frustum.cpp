@@ -8,6 +8,11 @@
 
 #include "numeric.h"
 
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define VOXVIS_FRUSTUM_AVX2 1
+#include <immintrin.h>
+#endif
+
 namespace voxvis {
 
 using detail::finite3;
@@ -79,8 +84,50 @@ WorldFrustum make_world_frustum(const Camera& c) {
   w.planes[3] = side(w.tan_y * w.f - w.u);
   w.planes[4] = Plane{w.f, -c.near};
   w.planes[5] = Plane{-w.f, c.far};
+  for (std::size_t k = 0; k < w.planes.size(); ++k) {
+    w.plane_nx[k] = w.planes[k].n.x, w.plane_ny[k] = w.planes[k].n.y, w.plane_nz[k] = w.planes[k].n.z;
+    w.plane_d[k] = w.planes[k].d;
+  }
   return w;
 }
+
+bool box_outside_scalar(const WorldFrustum& f, const Vec3& rlo, const Vec3& rhi, double neg_margin) {
+  for (const Plane& p : f.planes)
+    if (p.box_max(rlo, rhi) < neg_margin) return true;
+  return false;
+}
+
+#if VOXVIS_FRUSTUM_AVX2
+namespace {
+/// The largest value over the box of four planes' n·p + d, summed as
+/// Plane::box_max sums it: ((d + x) + y) + z, each term n times the box's
+/// side that n points to (hi where n > 0, else lo).
+__attribute__((target("avx2"))) inline __m256d box_max4(const WorldFrustum& f, std::size_t k, const Vec3& rlo,
+                                                        const Vec3& rhi) {
+  const __m256d zero = _mm256_setzero_pd();
+  const __m256d nx = _mm256_loadu_pd(f.plane_nx.data() + k), ny = _mm256_loadu_pd(f.plane_ny.data() + k);
+  const __m256d nz = _mm256_loadu_pd(f.plane_nz.data() + k);
+  const __m256d px = _mm256_blendv_pd(_mm256_set1_pd(rlo.x), _mm256_set1_pd(rhi.x), _mm256_cmp_pd(nx, zero, _CMP_GT_OQ));
+  const __m256d py = _mm256_blendv_pd(_mm256_set1_pd(rlo.y), _mm256_set1_pd(rhi.y), _mm256_cmp_pd(ny, zero, _CMP_GT_OQ));
+  const __m256d pz = _mm256_blendv_pd(_mm256_set1_pd(rlo.z), _mm256_set1_pd(rhi.z), _mm256_cmp_pd(nz, zero, _CMP_GT_OQ));
+  __m256d v = _mm256_add_pd(_mm256_loadu_pd(f.plane_d.data() + k), _mm256_mul_pd(nx, px));
+  v = _mm256_add_pd(v, _mm256_mul_pd(ny, py));
+  return _mm256_add_pd(v, _mm256_mul_pd(nz, pz));
+}
+}  // namespace
+
+__attribute__((target("avx2"))) bool box_outside_avx2(const WorldFrustum& f, const Vec3& rlo, const Vec3& rhi,
+                                                      double neg_margin) {
+  const __m256d m = _mm256_set1_pd(neg_margin);
+  const __m256d below = _mm256_or_pd(_mm256_cmp_pd(box_max4(f, 0, rlo, rhi), m, _CMP_LT_OQ),
+                                     _mm256_cmp_pd(box_max4(f, 4, rlo, rhi), m, _CMP_LT_OQ));
+  return _mm256_movemask_pd(below) != 0;
+}
+#else
+bool box_outside_avx2(const WorldFrustum& f, const Vec3& rlo, const Vec3& rhi, double neg_margin) {
+  return box_outside_scalar(f, rlo, rhi, neg_margin);
+}
+#endif
 
 bool WorldFrustum::sane() const {
   auto unit_len = [](const Vec3& v) {
@@ -101,10 +148,7 @@ bool WorldFrustum::may_intersect_box(const Vec3& lo, const Vec3& hi) const {
   // Margin grows with the magnitudes involved so rounding never culls.
   const double scale = 1.0 + max_abs(rlo) + max_abs(rhi) + max_abs(eye);
   const double margin = 1e-9 * scale;
-  for (const Plane& p : planes) {
-    if (p.box_max(rlo, rhi) < -margin) return false;
-  }
-  return true;
+  return !(cpu_has_avx2() ? box_outside_avx2(*this, rlo, rhi, -margin) : box_outside_scalar(*this, rlo, rhi, -margin));
 }
 
 LocalFrustum make_local_frustum(const WorldFrustum& wf, const Vec3& e, const Vec3& vs,

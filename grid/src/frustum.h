@@ -33,6 +33,10 @@ struct WorldFrustum {
   double aspect = 1.0;            ///< Width / height of the image.
   double near = 0.0, far = 0.0;
   std::array<Plane, 6> planes{};  ///< left, right, bottom, top, near, far.
+  /// The planes again, by field, for the AVX2 box test (four planes to an
+  /// instruction); lanes 6 and 7 hold n = 0, d = 0, which cull nothing.
+  /// make_world_frustum writes both forms.
+  std::array<double, 8> plane_nx{}, plane_ny{}, plane_nz{}, plane_d{};
 
   /// Whether every number the occlusion tests derive from the camera is
   /// usable: a unit orthogonal basis, finite positive tangents and planes.
@@ -56,6 +60,14 @@ struct WorldFrustum {
 };
 
 WorldFrustum make_world_frustum(const Camera& camera);
+
+/// may_intersect_box's test, for the box [rlo, rhi] relative to the eye:
+/// whether some plane's largest value over it is below `neg_margin`
+/// (Plane::box_max, the same sums in the same order). The scalar reference,
+/// and the AVX2 kernel (call only where cpu_has_avx2()); the tests compare
+/// the two.
+bool box_outside_scalar(const WorldFrustum& f, const Vec3& rlo, const Vec3& rhi, double neg_margin);
+bool box_outside_avx2(const WorldFrustum& f, const Vec3& rlo, const Vec3& rhi, double neg_margin);
 
 /// The pyramid (eye apex, cut at depth `far_eff`) in local grid coordinates.
 struct LocalFrustum {

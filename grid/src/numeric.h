@@ -35,6 +35,17 @@ inline std::uint64_t ticks() {
 inline double least(double a, double b) { return b < a ? b : a; }
 inline double greatest(double a, double b) { return b > a ? b : a; }
 
+/// Whether this CPU runs AVX2 (and the build has the engine's AVX2 kernels,
+/// written for x86-64 with GCC or Clang); asked once.
+inline bool cpu_has_avx2() {
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+  static const bool has = __builtin_cpu_supports("avx2");
+  return has;
+#else
+  return false;
+#endif
+}
+
 /// One unit in the last place of 1.0.
 inline constexpr double kUlp = std::numeric_limits<double>::epsilon();
 

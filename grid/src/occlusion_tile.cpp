@@ -105,18 +105,12 @@ __attribute__((target("avx2"))) TileResult raster_tile_avx2(float* tile, const T
   return res;
 }
 
-bool cpu_has_avx2() {
-  static const bool has = __builtin_cpu_supports("avx2");
-  return has;
-}
-
 #else
 
 TileResult raster_tile_avx2(float* tile, const TileJob& job) { return raster_tile_scalar(tile, job); }
 bool tile_above_avx2(const float* tile, int c0, int c1, int r0, int r1, float w) {
   return tile_above_scalar(tile, c0, c1, r0, r1, w);
 }
-bool cpu_has_avx2() { return false; }
 
 #endif
 

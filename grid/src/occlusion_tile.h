@@ -15,6 +15,8 @@
 
 #include <cstdint>
 
+#include "numeric.h"  // cpu_has_avx2
+
 namespace voxvis::detail {
 
 inline constexpr int kTileW = 8;
@@ -72,7 +74,5 @@ TileResult raster_tile_avx2(float* tile, const TileJob& job);
 bool tile_above_scalar(const float* tile, int c0, int c1, int r0, int r1, float w);
 /// The same with AVX2; call only where cpu_has_avx2().
 bool tile_above_avx2(const float* tile, int c0, int c1, int r0, int r1, float w);
-/// Whether this CPU runs AVX2 (and the build has the kernel).
-bool cpu_has_avx2();
 
 }  // namespace voxvis::detail

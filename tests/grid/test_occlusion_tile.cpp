@@ -3,7 +3,8 @@
 // buffers of every kind of occluder; the pixels past the image's sides are
 // never written and never lower a tile's bound; a frame clears what the last
 // one wrote; the occludee test's corner slopes agree between their two
-// kernels (occludee_corners.h). (The bounds' conservativeness against exact
+// kernels (occludee_corners.h), and so do the frustum's box test's
+// (frustum.h). (The bounds' conservativeness against exact
 // rays is tested in test_occlusion_buffer.cpp with both kernels.)
 #include <gtest/gtest.h>
 
@@ -306,6 +307,52 @@ TEST(OccludeeCorners, HidesAnswersTheSameWithBothKernels) {
   }
   EXPECT_GT(hidden, asked / 20);  // Enough boxes hidden for the comparison to mean something.
   EXPECT_LT(hidden, asked);
+}
+
+// The frustum's box test (frustum.h): the AVX2 kernel and the scalar
+// reference answer alike for boxes inside, outside, straddling and far
+// beyond every plane, huge and tiny, cameras of every shape included; and
+// a box the test calls outside has no point inside (its corners checked
+// against the planes with the margin).
+TEST(FrustumBoxTest, KernelsAgree) {
+  if (!detail::cpu_has_avx2()) GTEST_SKIP() << "this CPU has no AVX2: only the scalar kernel runs";
+  Rng rng(23);
+  int outside = 0, inside = 0;
+  for (int trial = 0; trial < 200; ++trial) {
+    Camera cam;
+    cam.eye = rng.in_box(Vec3(-5), Vec3(5)) * rng.log_uniform(1e-3, 1e6);
+    cam.dir = rng.unit_vector();
+    cam.up = rng.unit_vector();
+    if (!validate_camera(cam).ok) continue;
+    cam.fov_y_deg = rng.uniform(1.0, 179.0);
+    cam.aspect = rng.log_uniform(0.05, 20.0);
+    cam.near = rng.log_uniform(1e-4, 1.0);
+    cam.far = cam.near * rng.log_uniform(2.0, 1e6);
+    if (!validate_camera(cam).ok) continue;
+    const detail::WorldFrustum f = detail::make_world_frustum(cam);
+    for (int k = 0; k < 500; ++k) {
+      const double scale = rng.log_uniform(1e-3, cam.far * 2.0);
+      const Vec3 lo = rng.in_box(Vec3(-scale), Vec3(scale));
+      const Vec3 hi = lo + rng.in_box(Vec3(0.0), Vec3(scale));
+      const double margin = -1e-9 * (1.0 + scale);
+      const bool a = detail::box_outside_avx2(f, lo, hi, margin);
+      ASSERT_EQ(a, detail::box_outside_scalar(f, lo, hi, margin)) << "trial " << trial << " box " << k;
+      (a ? outside : inside) += 1;
+      if (!a) continue;
+      bool separated = false;  // Some plane with all eight corners strictly outside it.
+      for (const detail::Plane& p : f.planes) {
+        bool all = true;
+        for (int c = 0; c < 8; ++c) {
+          const Vec3 q((c & 1) ? hi.x : lo.x, (c & 2) ? hi.y : lo.y, (c & 4) ? hi.z : lo.z);
+          all = all && glm::dot(p.n, q) + p.d < 0.0;
+        }
+        separated = separated || all;
+      }
+      ASSERT_TRUE(separated) << "trial " << trial << " box " << k;
+    }
+  }
+  EXPECT_GT(outside, 1000);
+  EXPECT_GT(inside, 1000);
 }
 
 }  // namespace
