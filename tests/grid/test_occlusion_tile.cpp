@@ -145,6 +145,25 @@ TEST(OcclusionTile, OccludeeKernelsAgreeAndReadOnlyTheirRectangle) {
 
 /// Renders random occluders of every kind into a buffer with the given
 /// kernel, from the same random stream.
+/// The ranges of a random camera's field of view (degrees), aspect and
+/// near plane (the last two log-uniform).
+struct ViewRanges {
+  double fov_lo, fov_hi, aspect_lo, aspect_hi, near_lo, near_hi;
+};
+
+/// A camera at `eye` looking a random way, its shape drawn from `r`; false
+/// when its direction and up are refused (too near parallel).
+bool random_camera(Rng& rng, const Vec3& eye, const ViewRanges& r, Camera* cam) {
+  cam->eye = eye;
+  cam->dir = rng.unit_vector();
+  cam->up = rng.unit_vector();
+  if (!validate_camera(*cam).ok) return false;
+  cam->fov_y_deg = rng.uniform(r.fov_lo, r.fov_hi);
+  cam->aspect = rng.log_uniform(r.aspect_lo, r.aspect_hi);
+  cam->near = rng.log_uniform(r.near_lo, r.near_hi);
+  return true;
+}
+
 OcclusionBuffer render_random(const Camera& cam, int width, BufferKernel kernel, std::uint64_t seed) {
   OcclusionBuffer ob;
   ob.kernel = kernel;
@@ -180,13 +199,7 @@ TEST(OcclusionTile, ScalarAndAvx2BuffersAgreeBitForBit) {
   std::uint64_t written = 0;
   for (int trial = 0; trial < 60; ++trial) {
     Camera cam;
-    cam.eye = rng.in_box(Vec3(-5), Vec3(5));
-    cam.dir = rng.unit_vector();
-    cam.up = rng.unit_vector();
-    if (!validate_camera(cam).ok) continue;
-    cam.fov_y_deg = rng.uniform(20.0, 150.0);
-    cam.aspect = rng.log_uniform(0.3, 3.0);
-    cam.near = rng.log_uniform(1e-3, 0.5);
+    if (!random_camera(rng, rng.in_box(Vec3(-5), Vec3(5)), {20.0, 150.0, 0.3, 3.0, 1e-3, 0.5}, &cam)) continue;
     // Widths and heights that are not multiples of the tile's sides too.
     const int width = rng.uniform_int(5, 203);
     const OcclusionBuffer a = render_random(cam, width, BufferKernel::Auto, 100 + static_cast<std::uint64_t>(trial));
@@ -285,13 +298,7 @@ TEST(OccludeeCorners, HidesAnswersTheSameWithBothKernels) {
   int hidden = 0, asked = 0;
   for (int trial = 0; trial < 30; ++trial) {
     Camera cam;
-    cam.eye = rng.in_box(Vec3(-5), Vec3(5));
-    cam.dir = rng.unit_vector();
-    cam.up = rng.unit_vector();
-    if (!validate_camera(cam).ok) continue;
-    cam.fov_y_deg = rng.uniform(30.0, 120.0);
-    cam.aspect = rng.log_uniform(0.5, 2.0);
-    cam.near = rng.log_uniform(1e-3, 0.5);
+    if (!random_camera(rng, rng.in_box(Vec3(-5), Vec3(5)), {30.0, 120.0, 0.5, 2.0, 1e-3, 0.5}, &cam)) continue;
     const OcclusionBuffer a = render_random(cam, 160, BufferKernel::Auto, 200 + static_cast<std::uint64_t>(trial));
     OcclusionBuffer b = a;
     b.kernel = BufferKernel::Scalar;
@@ -320,13 +327,8 @@ TEST(FrustumBoxTest, KernelsAgree) {
   int outside = 0, inside = 0;
   for (int trial = 0; trial < 200; ++trial) {
     Camera cam;
-    cam.eye = rng.in_box(Vec3(-5), Vec3(5)) * rng.log_uniform(1e-3, 1e6);
-    cam.dir = rng.unit_vector();
-    cam.up = rng.unit_vector();
-    if (!validate_camera(cam).ok) continue;
-    cam.fov_y_deg = rng.uniform(1.0, 179.0);
-    cam.aspect = rng.log_uniform(0.05, 20.0);
-    cam.near = rng.log_uniform(1e-4, 1.0);
+    const Vec3 eye = rng.in_box(Vec3(-5), Vec3(5)) * rng.log_uniform(1e-3, 1e6);
+    if (!random_camera(rng, eye, {1.0, 179.0, 0.05, 20.0, 1e-4, 1.0}, &cam)) continue;
     cam.far = cam.near * rng.log_uniform(2.0, 1e6);
     if (!validate_camera(cam).ok) continue;
     const detail::WorldFrustum f = detail::make_world_frustum(cam);
