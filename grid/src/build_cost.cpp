@@ -253,11 +253,13 @@ std::uint64_t grid_bytes(const Scene::Impl& s) {
   // 128 bytes a dynamic cell (bricks and coarser) and 64 a dynamic entry
   // (scene_cost). Per dynamic object, its entries in the TBV expiry queue
   // (a live one and a stale one) and the reveal, unclaimed and wake queues,
-  // doubled by their growth: 64 bytes.
+  // doubled by their growth: 64 bytes; and the expiry queue's ring of
+  // buckets, once per scene with dynamic objects.
   return nvox * (1 + (buffer ? 4 : 0)) + 4 * offsets + bricks * (sizeof(detail::Brick) + 16) +
          coarse * (sizeof(detail::Brick) + 8) + (bricks > 0 && s.pyr.levels > 2 ? 8 * s.pyr.cells(2) : 0) +
          128 * (bricks + coarse) + 64 * dynamic + (buffer ? 8 * cells + (bricks > 0 ? 12 * cells : 0) : 0) +
-         (buffer ? 8 * (s.pyr.cells(1) + 1) : 0) + objects * (sizeof(Obj) + 52) + (1u << 16);
+         (buffer ? 8 * (s.pyr.cells(1) + 1) : 0) + objects * (sizeof(Obj) + 52) + (1u << 16) +
+         (dynamic > 0 ? sizeof(std::vector<detail::ExpiryEntry>) * detail::ExpiryQueue::kBuckets : 0);
 }
 
 bool interior_level_set(const Scene::Impl& s, const Obj& o, BuildMeter& meter, std::uint64_t* bytes) {

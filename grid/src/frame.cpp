@@ -73,7 +73,7 @@ Status begin(FrameRun& f, Scene::Clock clock, bool* expired) {
   // for a free moment (phase 4) or the next change. The expiry queue
   // changes only under `mu` exclusive and `book`, and a TBV made after this
   // point expires after s.time >= t, so the check holds until the traversal.
-  *expired = !s.expiry.empty() && s.expiry.top().expiry <= f.t;
+  *expired = s.expiry.any_due(f.t);
   return Status::Ok();
 }
 
@@ -102,10 +102,7 @@ void renew(FrameRun& f) {
   s.apply_queue(f.st, s.claims_made);
   const double ahead = s.frames_in_flight.load(std::memory_order_relaxed) > 1 ? kRenewAhead : 0.0;
   std::vector<detail::ExpiryEntry> due;
-  while (!s.expiry.empty() && s.expiry.top().expiry <= f.t + ahead) {
-    due.push_back(s.expiry.top());
-    s.expiry.pop();
-  }
+  s.expiry.pop_due(f.t + ahead, &due);
   // The objects are scattered over the scene's memory (a cache miss each,
   // most of a renewal's time at 100,000 hidden objects): fetched a few ahead.
   constexpr std::size_t kAhead = 4;

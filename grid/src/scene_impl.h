@@ -26,7 +26,6 @@
 #include <atomic>
 #include <cstdint>
 #include <limits>
-#include <queue>
 #include <mutex>
 #include <shared_mutex>
 #include <unordered_map>
@@ -34,6 +33,7 @@
 #include <vector>
 
 #include "cells.h"
+#include "expiry_queue.h"
 #include "mesh_interior.h"
 #include "mesh_pairs.h"
 #include "occlusion_buffer.h"
@@ -180,13 +180,6 @@ struct BrickEntry {
 struct Brick {
   std::vector<BrickEntry> entries;
   std::uint32_t live = 0;
-};
-
-struct ExpiryEntry {
-  double expiry;
-  std::uint32_t slot;
-  std::uint32_t epoch;  ///< The object's tbv_epoch when pushed.
-  bool operator>(const ExpiryEntry& o) const { return expiry > o.expiry; }
 };
 
 struct ViewerState {
@@ -413,9 +406,7 @@ struct Scene::Impl {
   std::vector<std::uint32_t> outside_tbvs;
 
   // TBVs.
-  std::priority_queue<detail::ExpiryEntry, std::vector<detail::ExpiryEntry>,
-                      std::greater<detail::ExpiryEntry>>
-      expiry;
+  detail::ExpiryQueue expiry;
   std::uint32_t tbv_count = 0;
   std::vector<std::uint32_t> unclaimed;  ///< Slots that may need a TBV.
   /// TBVs frames found not occluded, to be revealed by the next holder of
@@ -523,6 +514,13 @@ struct Scene::Impl {
   /// Puts object `slot` under a TBV from `now`: `box` if given (computed
   /// for it at this renewal), else tbv_box's.
   void make_tbv(std::uint32_t slot, double now, const TbvBox* box = nullptr);
+  /// The box object `o` reaches in its longest period at the period's
+  /// largest scale (holding every box full_tbv_box makes for it) and its
+  /// voxels; true when no level-2 cell around them was seen within the
+  /// memory (unseen_around): then its TBV starts at that period and holds
+  /// that box (make_tbv, renew_tbv). False, outputs unset, for automatic
+  /// periods off or no seen record.
+  bool longest_box_unseen(const detail::Obj& o, Vec3* lo, Vec3* hi, detail::VoxBox* vb) const;
   /// Gives an expired TBV a new validity period (see scene_tbv.cpp).
   void renew_tbv(std::uint32_t slot, double now);
   /// The TBV box for the object's current centre and a period starting now;

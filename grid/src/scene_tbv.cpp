@@ -443,13 +443,46 @@ void Scene::Impl::mark_seen(Scratch::Impl& w, double t) {
   w.seen_list.clear();
 }
 
+bool Scene::Impl::longest_box_unseen(const Obj& o, Vec3* lo, Vec3* hi, VoxBox* vb) const {
+  if (!(o.max_speed > 0.0) || options.tbv_period > 0.0 || cell_any_seen_at.empty() ||
+      !(options.tbv_seen_memory > 0.0))
+    return false;
+  // The longest period at full_tbv_box's largest scale, clamped to the
+  // bounds as full_tbv_box clamps: it holds every box full_tbv_box makes.
+  const double grow = o.max_speed * 1.5 * max_period(o);
+  const Vec3 blo = o.box_lo(), bhi = o.box_hi();
+  const Vec3 l = glm::min(blo, glm::max(blo - grow, spec.bounds_min));
+  const Vec3 h = glm::max(bhi, glm::min(bhi + grow, spec.bounds_max));
+  const VoxBox v = touch_range(l, h, slop(std::fmax(max_abs(l), max_abs(h))));
+  if (!unseen_around(v)) return false;
+  *lo = l;
+  *hi = h;
+  *vb = v;
+  return true;
+}
+
 void Scene::Impl::make_tbv(std::uint32_t slot, double now, const TbvBox* box) {
   Obj& o = objs[slot];
   double period;
+  VoxBox longest;
+  bool quiet = false;
   if (box) {
     o.tbv_lo = box->lo;
     o.tbv_hi = box->hi;
     period = box->period;
+  } else if (longest_box_unseen(o, &o.tbv_lo, &o.tbv_hi, &longest)) {
+    // The doubling of periods (frame.cpp, renew) starts short because an
+    // object that just left the view may soon be back in it. One whose
+    // longest TBV stays in space no viewer saw within the memory (behind a
+    // wall, the usual case for a crowd) is not likely to be: it starts at
+    // the longest period, so its renewals, each a wake of the object, come
+    // a few times less often, and it holds the longest box, which every
+    // renewal that finds it as quiet keeps (renew_tbv): its entries are
+    // written once.
+    o.tbv_period = max_period(o);
+    Vec3 lo, hi;
+    period = full_tbv_box(slot, &lo, &hi);
+    quiet = true;
   } else {
     period = tbv_box(slot, &o.tbv_lo, &o.tbv_hi);
   }
@@ -459,10 +492,9 @@ void Scene::Impl::make_tbv(std::uint32_t slot, double now, const TbvBox* box) {
   ++wake_epoch;
   ++o.tbv_gen;
   ++o.tbv_epoch;
-  if (std::isfinite(o.tbv_expiry)) expiry.push({o.tbv_expiry, slot, o.tbv_epoch});
-  const double s = slop(std::fmax(max_abs(o.tbv_lo), max_abs(o.tbv_hi)));
-  o.tbv_voxels = touch_range(o.tbv_lo, o.tbv_hi, s);
-  o.tbv_coarse = tbv_coarse_cells(o.tbv_voxels);
+  if (std::isfinite(o.tbv_expiry)) expiry.push({o.tbv_expiry, slot, o.tbv_epoch}, now);
+  o.tbv_voxels = quiet ? longest : touch_range(o.tbv_lo, o.tbv_hi, slop(std::fmax(max_abs(o.tbv_lo), max_abs(o.tbv_hi))));
+  o.tbv_coarse = tbv_coarse_cells(o.tbv_voxels, quiet);
   brick_add(o.tbv_voxels, (slot << 1) | 1u, o.tbv_gen, o.tbv_coarse);
   // Clamped growth ends on the bounds, so only an object that itself reaches
   // beyond them has a TBV with a part outside the grid.
@@ -488,12 +520,19 @@ void Scene::Impl::renew_tbv(std::uint32_t slot, double now) {
   // would reveal it.
   Vec3 lo, hi;
   double period = full_tbv_box(slot, &lo, &hi);
+  // At the longest period with nothing seen around its longest box, the
+  // box is that one (make_tbv), which holds the old one: the same box
+  // renewal after renewal, and no entry written.
+  VoxBox longest;
+  const bool at_longest = o.tbv_period >= max_period(o) && longest_box_unseen(o, &lo, &hi, &longest);
   // Behind a wall, the usual case, nothing around the union of old and new
   // was seen within the memory: no cut to look for, and each cell around it
   // may hold it whole. One question of the seen record for both.
   const Vec3 ulo = glm::min(o.tbv_lo, lo), uhi = glm::max(o.tbv_hi, hi);
-  const VoxBox uvb = touch_range(ulo, uhi, slop(std::fmax(max_abs(ulo), max_abs(uhi))));
-  const bool quiet = unseen_around(uvb);
+  const VoxBox uvb = at_longest && ulo == lo && uhi == hi
+                         ? longest
+                         : touch_range(ulo, uhi, slop(std::fmax(max_abs(ulo), max_abs(uhi))));
+  const bool quiet = at_longest || unseen_around(uvb);
   bool cut = false;
   if (!quiet) period = cut_tbv_box(slot, period, &lo, &hi, &cut);
   // Entries are written per range of bricks (its coarsest cells), so a
@@ -522,7 +561,7 @@ void Scene::Impl::renew_tbv(std::uint32_t slot, double now) {
     o.tbv_voxels = vb;
     o.tbv_expiry = expiry_after(now, period);
     ++o.tbv_epoch;
-    expiry.push({o.tbv_expiry, slot, o.tbv_epoch});
+    expiry.push({o.tbv_expiry, slot, o.tbv_epoch}, now);
     return;
   }
   // Not cut: lo and hi are still the whole growth, and the union is uvb's.
@@ -542,7 +581,7 @@ void Scene::Impl::renew_tbv(std::uint32_t slot, double now) {
   }
   o.tbv_expiry = expiry_after(now, period);
   ++o.tbv_epoch;
-  expiry.push({o.tbv_expiry, slot, o.tbv_epoch});
+  expiry.push({o.tbv_expiry, slot, o.tbv_epoch}, now);
 }
 
 void Scene::Impl::drop_tbv(std::uint32_t slot) {

@@ -54,16 +54,6 @@ std::uint64_t bytes_of_map(const M& m) {
   return m.bucket_count() * sizeof(void*) + m.size() * node;
 }
 
-/// The expiry queue's container (a protected member, read through a derived
-/// class's pointer to it).
-std::uint64_t bytes_of_queue(const decltype(Scene::Impl::expiry)& q) {
-  using Queue = std::remove_cvref_t<decltype(q)>;
-  struct Peek : Queue {
-    static const typename Queue::container_type& of(const Queue& from) { return from.*(&Peek::c); }
-  };
-  return bytes_of(Peek::of(q));
-}
-
 /// What a built scene keeps, bytes, item by item (for failure messages).
 struct Footprint {
   std::uint64_t total = 0;
@@ -97,7 +87,7 @@ std::uint64_t scene_footprint(const Scene::Impl& s, std::string* detail = nullpt
   f.add("cell_seen_at", bytes_of(s.cell_seen_at));
   f.add("cell_any_seen_at", bytes_of(s.cell_any_seen_at));
   f.add("outside", bytes_of(s.outside_objs) + bytes_of(s.outside_tbvs));
-  f.add("expiry", bytes_of_queue(s.expiry));
+  f.add("expiry", s.expiry.bytes());
   f.add("queues", bytes_of(s.unclaimed) + bytes_of(s.queued_reveals) + bytes_of(s.pending_wake));
   // Meshes: the per-brick triangles and interior boxes, each static mesh's
   // placed vertices, and once each, the meshes, their quads and interiors.

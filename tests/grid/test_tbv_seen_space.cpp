@@ -1,7 +1,8 @@
 // TBVs keep clear of the space viewers see (docs/design.md, "Temporal
 // bounding volumes"): hidden moving objects around a closed room stay
 // hidden, unrevealed and off the wake list except when their TBV expires,
-// while every frame keeps zero misses against the ray caster.
+// while every frame keeps zero misses against the ray caster; and a TBV
+// deep in space no one saw starts at the longest period.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -21,7 +22,7 @@
 namespace voxvis::test {
 namespace {
 
-constexpr double kDt = 1.0 / 30.0;
+constexpr double kSeenDt = 1.0 / 30.0;
 constexpr ObjectId kFirstHidden = 100;
 
 /// Bounds 0..48 on a 48^3 grid of unit voxels; a closed room (outer box
@@ -83,11 +84,11 @@ TEST(TbvSeenSpace, HiddenObjectsAroundAClosedRoomAreNeverRevealed) {
   ASSERT_TRUE(h.status().ok) << h.status().str();
   double t = 0.0;
   int f = 0;
-  for (; f < 30; ++f, t += kDt) ASSERT_EQ(h.frame(turning_camera(f), t), "") << "frame " << f;
+  for (; f < 30; ++f, t += kSeenDt) ASSERT_EQ(h.frame(turning_camera(f), t), "") << "frame " << f;
   ASSERT_EQ(h.last().stats.tbvs_active, 400u);
   std::uint32_t revealed = 0, expired = 0;
   std::size_t in_pvs = 0;
-  for (; f < 150; ++f, t += kDt) {
+  for (; f < 150; ++f, t += kSeenDt) {
     ASSERT_EQ(h.frame(turning_camera(f), t), "") << "frame " << f;
     const FrameResult& r = h.last();
     revealed += r.stats.tbvs_revealed;
@@ -115,10 +116,10 @@ TEST(TbvSeenSpace, WithTheBufferHiddenObjectsAroundAClosedRoomStayHidden) {
   ASSERT_TRUE(h.status().ok) << h.status().str();
   double t = 0.0;
   int f = 0;
-  for (; f < 30; ++f, t += kDt) ASSERT_EQ(h.frame(turning_camera(f), t), "") << "frame " << f;
+  for (; f < 30; ++f, t += kSeenDt) ASSERT_EQ(h.frame(turning_camera(f), t), "") << "frame " << f;
   std::uint32_t revealed = 0, expired = 0;
   std::size_t in_pvs = 0;
-  for (; f < 150; ++f, t += kDt) {
+  for (; f < 150; ++f, t += kSeenDt) {
     ASSERT_EQ(h.frame(turning_camera(f), t), "") << "frame " << f;
     const FrameResult& r = h.last();
     EXPECT_GT(r.stats.ob_width, 0u);
@@ -129,6 +130,51 @@ TEST(TbvSeenSpace, WithTheBufferHiddenObjectsAroundAClosedRoomStayHidden) {
   EXPECT_EQ(in_pvs, 0u);
   EXPECT_LE(revealed, 20u);  // One TBV in twenty at most (9 when written).
   EXPECT_GT(expired, 400u);
+}
+
+TEST(TbvSeenSpace, DeepInUnseenSpaceATbvStartsAtTheLongestPeriod) {
+  // A wall across the grid (z 36..38) in front of a still eye, 8 voxels
+  // away; 40 movers
+  // far behind it (z 1..3.5: their longest box, 12 voxels grown, stays in
+  // the cells no frame sees) and 40 just behind it (z 26..33, whose boxes
+  // would reach the seen space in front of the wall). Periods start at
+  // 2 s and double up to 8 s, each scaled by [0.5, 1.5): the near movers
+  // are woken within 3 s, the far ones start at 8 s and none is woken
+  // before 4 s. Nothing hidden is revealed or kept.
+  SceneDesc d;
+  d.bounds_min = Vec3(0.0);
+  d.bounds_max = Vec3(48.0);
+  d.grid = glm::ivec3(48);
+  d.objects.push_back(box_between(1, Vec3(0.0, 0.0, 36.0), Vec3(48.0, 48.0, 38.0)));
+  Rng rng(5);
+  ObjectId id = kFirstHidden;
+  for (int i = 0; i < 40; ++i)
+    d.objects.push_back(dynamic(sphere(id++, rng.in_box(Vec3(2.0, 2.0, 1.0), Vec3(46.0, 46.0, 3.5)), 0.3), 1.0));
+  const ObjectId first_near = id;
+  for (int i = 0; i < 40; ++i)
+    d.objects.push_back(dynamic(sphere(id++, rng.in_box(Vec3(2.0, 2.0, 26.0), Vec3(46.0, 46.0, 33.0)), 0.3), 1.0));
+  EngineHarness h(d, SceneOptions{}, "wall, far and near movers");
+  ASSERT_TRUE(h.status().ok) << h.status().str();
+  // A field of view of 150 degrees: the eye sees the whole front of the
+  // wall, so every cell the near movers reach holds seen space.
+  const Camera cam = camera_along(Vec3(24.0, 24.0, 46.0), Vec3(0.0, 0.0, -1.0), 150.0, 1.0, 0.05, 500.0);
+  std::vector<bool> near_woken(40, false);
+  std::uint32_t revealed = 0;
+  std::size_t in_pvs = 0;
+  double t = 0.0;
+  for (int f = 0; t < 3.9; ++f, t += kSeenDt) {
+    ASSERT_EQ(h.frame(cam, t), "") << "frame " << f;
+    const FrameResult& r = h.last();
+    revealed += r.stats.tbvs_revealed;
+    in_pvs += hidden_in(r.pvs);
+    for (ObjectId w : r.wake) {
+      EXPECT_GE(w, first_near) << "far mover " << w << " woken at t=" << t;
+      if (w >= first_near) near_woken[static_cast<std::size_t>(w - first_near)] = true;
+    }
+  }
+  EXPECT_EQ(revealed, 0u);
+  EXPECT_EQ(in_pvs, 0u);
+  EXPECT_EQ(std::count(near_woken.begin(), near_woken.end(), true), 40) << "the near movers' periods start short";
 }
 
 TEST(TbvSeenSpace, WithoutMemoryTheTurningViewerRevealsTbvs) {
@@ -142,7 +188,7 @@ TEST(TbvSeenSpace, WithoutMemoryTheTurningViewerRevealsTbvs) {
   ASSERT_TRUE(h.status().ok) << h.status().str();
   double t = 0.0;
   std::uint32_t revealed = 0;
-  for (int f = 0; f < 150; ++f, t += kDt) {
+  for (int f = 0; f < 150; ++f, t += kSeenDt) {
     ASSERT_EQ(h.frame(turning_camera(f), t), "") << "frame " << f;
     if (f >= 30) revealed += h.last().stats.tbvs_revealed;
   }
@@ -161,15 +207,15 @@ TEST(TbvSeenSpace, AnObjectWalkingIntoTheRoomIsRevealedAndSeen) {
   ASSERT_TRUE(h.status().ok) << h.status().str();
   double t = 0.0;
   int f = 0;
-  for (; f < 30; ++f, t += kDt) ASSERT_EQ(h.frame(turning_camera(f), t), "") << "frame " << f;
+  for (; f < 30; ++f, t += kSeenDt) ASSERT_EQ(h.frame(turning_camera(f), t), "") << "frame " << f;
   std::uint32_t revealed = 0;
   std::size_t walkers_seen = 0;
-  for (; f < 330; ++f, t += kDt) {
+  for (; f < 330; ++f, t += kSeenDt) {
     std::vector<Move> moves;
     for (auto& [id, c] : walkers) {
       const Vec3 to = Vec3(24.0) - c;
       const double len = std::sqrt(glm::dot(to, to));
-      if (len > 0.5) c += to * (0.95 * 3.0 * kDt / len);
+      if (len > 0.5) c += to * (0.95 * 3.0 * kSeenDt / len);
       moves.push_back({id, c});
     }
     ASSERT_TRUE(h.move(t, moves).ok);
@@ -211,7 +257,7 @@ TEST(TbvSeenSpace, TbvsHeldWholeBehindAWallAreRevealedWhenTheEyeWalksRoundIt) {
   double t = 0.0;
   int f = 0;
   std::uint32_t revealed = 0;
-  for (; f < 90; ++f, t += kDt) {
+  for (; f < 90; ++f, t += kSeenDt) {
     ASSERT_EQ(h.frame(c, t), "") << "frame " << f;
     if (f >= 30) revealed += h.last().stats.tbvs_revealed;
   }
@@ -221,7 +267,7 @@ TEST(TbvSeenSpace, TbvsHeldWholeBehindAWallAreRevealedWhenTheEyeWalksRoundIt) {
   // Round the end of the wall (x 44) and back along its far side, looking
   // at the objects.
   std::size_t seen = 0;
-  for (int k = 0; k < 60; ++k, ++f, t += kDt) {
+  for (int k = 0; k < 60; ++k, ++f, t += kSeenDt) {
     const double a = k / 59.0;
     c.eye = a < 0.5 ? Vec3(22.0 + 2.0 * a * 32.0, 16.0, 60.0 - 2.0 * a * 25.0) : Vec3(54.0, 16.0, 35.0 - 2.0 * (a - 0.5) * 15.0);
     c.dir = glm::normalize(Vec3(20.0, 16.0, 14.0) - c.eye);
