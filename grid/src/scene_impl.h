@@ -514,13 +514,17 @@ struct Scene::Impl {
   /// Puts object `slot` under a TBV from `now`: `box` if given (computed
   /// for it at this renewal), else tbv_box's.
   void make_tbv(std::uint32_t slot, double now, const TbvBox* box = nullptr);
-  /// The box object `o` reaches in its longest period at the period's
-  /// largest scale (holding every box full_tbv_box makes for it) and its
-  /// voxels; true when no level-2 cell around them was seen within the
-  /// memory (unseen_around): then its TBV starts at that period and holds
-  /// that box (make_tbv, renew_tbv). False, outputs unset, for automatic
-  /// periods off or no seen record.
-  bool longest_box_unseen(const detail::Obj& o, Vec3* lo, Vec3* hi, detail::VoxBox* vb) const;
+  /// A quiet TBV for object `slot`: its box grown as far as the cells of 16
+  /// voxels around it hold it whole, or else as far as the longest period
+  /// at its largest scale (which holds every box full_tbv_box makes),
+  /// whichever first has no level-2 cell around it seen within the memory
+  /// (unseen_around); its voxels, and the period that growth holds (scaled
+  /// into [0.75, 1)). 0 when neither is unseen, outputs unset (also for
+  /// automatic periods off or no seen record). make_tbv and renew_tbv.
+  double quiet_tbv_box(std::uint32_t slot, Vec3* lo, Vec3* hi, detail::VoxBox* vb) const;
+  /// The per-object, per-renewal factor in [0.5, 1.5) that periods are
+  /// scaled by (full_tbv_box).
+  double period_scale(std::uint32_t slot) const;
   /// Gives an expired TBV a new validity period (see scene_tbv.cpp).
   void renew_tbv(std::uint32_t slot, double now);
   /// The TBV box for the object's current centre and a period starting now;

@@ -271,6 +271,14 @@ double Scene::Impl::tbv_box(std::uint32_t slot, Vec3* lo_out, Vec3* hi_out, bool
   return cut_tbv_box(slot, period, lo_out, hi_out, cut);
 }
 
+double Scene::Impl::period_scale(std::uint32_t slot) const {
+  std::uint64_t h = (std::uint64_t{slot} << 32) ^ objs[slot].tbv_epoch ^ 0x9e3779b97f4a7c15ull;
+  h = (h ^ (h >> 30)) * 0xbf58476d1ce4e5b9ull;
+  h = (h ^ (h >> 27)) * 0x94d049bb133111ebull;
+  h ^= h >> 31;
+  return 0.5 + static_cast<double>(h >> 11) * 0x1p-53;
+}
+
 double Scene::Impl::full_tbv_box(std::uint32_t slot, Vec3* lo_out, Vec3* hi_out) const {
   const Obj& o = objs[slot];
   // Every centre reachable before expiry is within max_speed * period of the
@@ -280,11 +288,7 @@ double Scene::Impl::full_tbv_box(std::uint32_t slot, Vec3* lo_out, Vec3* hi_out)
   // The period is scaled by a factor in [0.5, 1.5), different for each object
   // and renewal, so that TBVs created together (say, 100,000 objects hidden
   // in the first frame) do not all expire in the same later frame.
-  std::uint64_t h = (std::uint64_t{slot} << 32) ^ o.tbv_epoch ^ 0x9e3779b97f4a7c15ull;
-  h = (h ^ (h >> 30)) * 0xbf58476d1ce4e5b9ull;
-  h = (h ^ (h >> 27)) * 0x94d049bb133111ebull;
-  h ^= h >> 31;
-  const double period = o.tbv_period * (0.5 + static_cast<double>(h >> 11) * 0x1p-53);
+  const double period = o.tbv_period * period_scale(slot);
   const double grow = o.max_speed * period;
   // Growth stops at the grid's bounds (the object's own box never shrinks):
   // beyond them the object can only get by a move, and a move that leaves
@@ -443,45 +447,59 @@ void Scene::Impl::mark_seen(Scratch::Impl& w, double t) {
   w.seen_list.clear();
 }
 
-bool Scene::Impl::longest_box_unseen(const Obj& o, Vec3* lo, Vec3* hi, VoxBox* vb) const {
+double Scene::Impl::quiet_tbv_box(std::uint32_t slot, Vec3* lo, Vec3* hi, VoxBox* vb) const {
+  const Obj& o = objs[slot];
   if (!(o.max_speed > 0.0) || options.tbv_period > 0.0 || cell_any_seen_at.empty() ||
       !(options.tbv_seen_memory > 0.0))
-    return false;
-  // The longest period at full_tbv_box's largest scale, clamped to the
-  // bounds as full_tbv_box clamps: it holds every box full_tbv_box makes.
-  const double grow = o.max_speed * 1.5 * max_period(o);
+    return 0.0;
+  // Its entries go to the cells of 16 voxels around it, three a side at
+  // most for any box that touches 33 voxels or fewer a side (touch_range
+  // adds a voxel each side of the box's own width): the growth those cells
+  // hold whole, never more than the longest period allowed. Failing that
+  // (seen space within those cells), the longest period's growth at its
+  // largest scale, which holds every box full_tbv_box makes.
+  const double longest = o.max_speed * 1.5 * max_period(o);
+  double widest = o.max_speed * options.tbv_max_period;
+  for (int a = 0; a < 3; ++a)
+    widest = std::fmin(widest, 0.5 * (31.0 * spec.voxel_size[a] - 2.0 * o.half[a]));
   const Vec3 blo = o.box_lo(), bhi = o.box_hi();
-  const Vec3 l = glm::min(blo, glm::max(blo - grow, spec.bounds_min));
-  const Vec3 h = glm::max(bhi, glm::min(bhi + grow, spec.bounds_max));
-  const VoxBox v = touch_range(l, h, slop(std::fmax(max_abs(l), max_abs(h))));
-  if (!unseen_around(v)) return false;
-  *lo = l;
-  *hi = h;
-  *vb = v;
-  return true;
+  for (const double grow : {std::fmax(widest, longest), longest}) {
+    const Vec3 l = glm::min(blo, glm::max(blo - grow, spec.bounds_min));
+    const Vec3 h = glm::max(bhi, glm::min(bhi + grow, spec.bounds_max));
+    const VoxBox v = touch_range(l, h, slop(std::fmax(max_abs(l), max_abs(h))));
+    if (!unseen_around(v)) {
+      if (widest > longest) continue;
+      return 0.0;
+    }
+    *lo = l;
+    *hi = h;
+    *vb = v;
+    // The period the growth holds, scaled into [0.75, 1) so that TBVs made
+    // together do not expire together.
+    return grow / o.max_speed * (0.625 + 0.25 * period_scale(slot));
+  }
+  return 0.0;
 }
 
 void Scene::Impl::make_tbv(std::uint32_t slot, double now, const TbvBox* box) {
   Obj& o = objs[slot];
-  double period;
-  VoxBox longest;
+  double period = 0.0;
+  VoxBox quiet_vb;
   bool quiet = false;
   if (box) {
     o.tbv_lo = box->lo;
     o.tbv_hi = box->hi;
     period = box->period;
-  } else if (longest_box_unseen(o, &o.tbv_lo, &o.tbv_hi, &longest)) {
+  } else if ((period = quiet_tbv_box(slot, &o.tbv_lo, &o.tbv_hi, &quiet_vb)) > 0.0) {
     // The doubling of periods (frame.cpp, renew) starts short because an
-    // object that just left the view may soon be back in it. One whose
-    // longest TBV stays in space no viewer saw within the memory (behind a
-    // wall, the usual case for a crowd) is not likely to be: it starts at
-    // the longest period, so its renewals, each a wake of the object, come
-    // a few times less often, and it holds the longest box, which every
-    // renewal that finds it as quiet keeps (renew_tbv): its entries are
-    // written once.
+    // object that just left the view may soon be back in it. One whose TBV
+    // may grow as far as its cells hold it whole and stay in space no viewer
+    // saw within the memory (behind a wall, the usual case for a crowd) is
+    // not likely to be: it takes that box and the period it holds, so its
+    // renewals, each a wake of the object, come a few times less often, and
+    // every renewal that finds it as quiet keeps the box (renew_tbv): its
+    // entries are written once.
     o.tbv_period = max_period(o);
-    Vec3 lo, hi;
-    period = full_tbv_box(slot, &lo, &hi);
     quiet = true;
   } else {
     period = tbv_box(slot, &o.tbv_lo, &o.tbv_hi);
@@ -493,7 +511,7 @@ void Scene::Impl::make_tbv(std::uint32_t slot, double now, const TbvBox* box) {
   ++o.tbv_gen;
   ++o.tbv_epoch;
   if (std::isfinite(o.tbv_expiry)) expiry.push({o.tbv_expiry, slot, o.tbv_epoch}, now);
-  o.tbv_voxels = quiet ? longest : touch_range(o.tbv_lo, o.tbv_hi, slop(std::fmax(max_abs(o.tbv_lo), max_abs(o.tbv_hi))));
+  o.tbv_voxels = quiet ? quiet_vb : touch_range(o.tbv_lo, o.tbv_hi, slop(std::fmax(max_abs(o.tbv_lo), max_abs(o.tbv_hi))));
   o.tbv_coarse = tbv_coarse_cells(o.tbv_voxels, quiet);
   brick_add(o.tbv_voxels, (slot << 1) | 1u, o.tbv_gen, o.tbv_coarse);
   // Clamped growth ends on the bounds, so only an object that itself reaches
@@ -519,20 +537,21 @@ void Scene::Impl::renew_tbv(std::uint32_t slot, double now) {
   // it: the old one may reach into space seen since it was made, which
   // would reveal it.
   Vec3 lo, hi;
-  double period = full_tbv_box(slot, &lo, &hi);
-  // At the longest period with nothing seen around its longest box, the
-  // box is that one (make_tbv), which holds the old one: the same box
-  // renewal after renewal, and no entry written.
-  VoxBox longest;
-  const bool at_longest = o.tbv_period >= max_period(o) && longest_box_unseen(o, &lo, &hi, &longest);
+  double period = 0.0;
+  // At the longest period with nothing seen around its quiet box, the box
+  // is that one (make_tbv), which holds the old one: the same box renewal
+  // after renewal, and no entry written.
+  VoxBox quiet_vb;
+  const bool at_quiet = o.tbv_period >= max_period(o) && (period = quiet_tbv_box(slot, &lo, &hi, &quiet_vb)) > 0.0;
+  if (!at_quiet) period = full_tbv_box(slot, &lo, &hi);
   // Behind a wall, the usual case, nothing around the union of old and new
   // was seen within the memory: no cut to look for, and each cell around it
   // may hold it whole. One question of the seen record for both.
   const Vec3 ulo = glm::min(o.tbv_lo, lo), uhi = glm::max(o.tbv_hi, hi);
-  const VoxBox uvb = at_longest && ulo == lo && uhi == hi
-                         ? longest
+  const VoxBox uvb = at_quiet && ulo == lo && uhi == hi
+                         ? quiet_vb
                          : touch_range(ulo, uhi, slop(std::fmax(max_abs(ulo), max_abs(uhi))));
-  const bool quiet = at_longest || unseen_around(uvb);
+  const bool quiet = at_quiet || unseen_around(uvb);
   bool cut = false;
   if (!quiet) period = cut_tbv_box(slot, period, &lo, &hi, &cut);
   // Entries are written per range of bricks (its coarsest cells), so a

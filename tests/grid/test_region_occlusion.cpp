@@ -175,8 +175,8 @@ TEST(RegionOcclusion, HiddenMoversAroundAClosedRoomCostWhatTheyCostAPoint) {
   // them: the room's free space does). Every direction, 100 ms ahead: none
   // is revealed, none enters the PVS, and a frame wakes only the TBVs that
   // expired in it, as the point camera's frames do. (Which expire differs:
-  // the region records more space seen, so fewer of its TBVs start at the
-  // longest period; scene_tbv.cpp, make_tbv.)
+  // the region records more space seen, so fewer of its TBVs start long;
+  // scene_tbv.cpp, make_tbv.)
   SceneDesc d = room(false);
   const auto first_mover = static_cast<ObjectId>(d.objects.size() + 1);
   for (int i = 0; i < 40; ++i) {

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <string>
@@ -16,6 +17,7 @@
 #include <glm/vector_relational.hpp>
 
 #include "engine_check.h"
+#include "scene_impl.h"
 #include "scenes.h"
 #include "voxvis/scene.h"
 
@@ -132,15 +134,12 @@ TEST(TbvSeenSpace, WithTheBufferHiddenObjectsAroundAClosedRoomStayHidden) {
   EXPECT_GT(expired, 400u);
 }
 
-TEST(TbvSeenSpace, DeepInUnseenSpaceATbvStartsAtTheLongestPeriod) {
-  // A wall across the grid (z 36..38) in front of a still eye, 8 voxels
-  // away; 40 movers
-  // far behind it (z 1..3.5: their longest box, 12 voxels grown, stays in
-  // the cells no frame sees) and 40 just behind it (z 26..33, whose boxes
-  // would reach the seen space in front of the wall). Periods start at
-  // 2 s and double up to 8 s, each scaled by [0.5, 1.5): the near movers
-  // are woken within 3 s, the far ones start at 8 s and none is woken
-  // before 4 s. Nothing hidden is revealed or kept.
+/// A wall across the grid (z 36..38) in front of the eye of wall_camera, 8
+/// voxels away; 40 movers far behind it (z 1..3.5: a TBV grown as far as
+/// its cells hold it whole stays in cells no frame sees), ids from
+/// kFirstHidden, and 40 just behind it (z 26..33, whose boxes would reach
+/// the seen space in front of the wall), ids from kFirstHidden + 40.
+SceneDesc wall_with_movers() {
   SceneDesc d;
   d.bounds_min = Vec3(0.0);
   d.bounds_max = Vec3(48.0);
@@ -150,20 +149,32 @@ TEST(TbvSeenSpace, DeepInUnseenSpaceATbvStartsAtTheLongestPeriod) {
   ObjectId id = kFirstHidden;
   for (int i = 0; i < 40; ++i)
     d.objects.push_back(dynamic(sphere(id++, rng.in_box(Vec3(2.0, 2.0, 1.0), Vec3(46.0, 46.0, 3.5)), 0.3), 1.0));
-  const ObjectId first_near = id;
   for (int i = 0; i < 40; ++i)
     d.objects.push_back(dynamic(sphere(id++, rng.in_box(Vec3(2.0, 2.0, 26.0), Vec3(46.0, 46.0, 33.0)), 0.3), 1.0));
-  EngineHarness h(d, SceneOptions{}, "wall, far and near movers");
+  return d;
+}
+
+/// A field of view of 150 degrees: the eye sees the whole front of the
+/// wall, so every cell the near movers reach holds seen space.
+Camera wall_camera() {
+  return camera_along(Vec3(24.0, 24.0, 46.0), Vec3(0.0, 0.0, -1.0), 150.0, 1.0, 0.05, 500.0);
+}
+
+TEST(TbvSeenSpace, DeepInUnseenSpaceATbvStartsLong) {
+  // Periods start at 2 s and double up to 8 s, each scaled by [0.5, 1.5):
+  // the near movers are woken within 3 s. The far ones' TBVs are held whole
+  // by the cells around them from the start, and take the period their
+  // growth there holds (15.3 voxels at speed 1, scaled by [0.75, 1)): none
+  // is woken in the first 11 s. Nothing hidden is revealed or kept.
+  EngineHarness h(wall_with_movers(), SceneOptions{}, "wall, far and near movers");
   ASSERT_TRUE(h.status().ok) << h.status().str();
-  // A field of view of 150 degrees: the eye sees the whole front of the
-  // wall, so every cell the near movers reach holds seen space.
-  const Camera cam = camera_along(Vec3(24.0, 24.0, 46.0), Vec3(0.0, 0.0, -1.0), 150.0, 1.0, 0.05, 500.0);
+  const ObjectId first_near = kFirstHidden + 40;
   std::vector<bool> near_woken(40, false);
   std::uint32_t revealed = 0;
   std::size_t in_pvs = 0;
   double t = 0.0;
-  for (int f = 0; t < 3.9; ++f, t += kSeenDt) {
-    ASSERT_EQ(h.frame(cam, t), "") << "frame " << f;
+  for (int f = 0; t < 11.0; ++f, t += kSeenDt) {
+    ASSERT_EQ(h.frame(wall_camera(), t), "") << "frame " << f;
     const FrameResult& r = h.last();
     revealed += r.stats.tbvs_revealed;
     in_pvs += hidden_in(r.pvs);
@@ -175,6 +186,49 @@ TEST(TbvSeenSpace, DeepInUnseenSpaceATbvStartsAtTheLongestPeriod) {
   EXPECT_EQ(revealed, 0u);
   EXPECT_EQ(in_pvs, 0u);
   EXPECT_EQ(std::count(near_woken.begin(), near_woken.end(), true), 40) << "the near movers' periods start short";
+}
+
+/// Runs `frames` frames of h's scene, each at kSeenDt after the last, and
+/// checks every TBV made or renewed in a frame: on each side its box is
+/// grown from the object's by at least max_speed times the time to its
+/// expiry (or reaches the grid's bounds), so it holds every position the
+/// object can reach before it expires.
+void check_tbv_reach(EngineHarness& h, const std::function<Camera(int)>& camera, int frames) {
+  const Scene::Impl& s = h.scene().impl();
+  std::vector<std::uint32_t> epoch(s.objs.size(), 0);
+  std::size_t checked = 0;
+  double t = 0.0;
+  for (int f = 0; f < frames; ++f, t += kSeenDt) {
+    ASSERT_EQ(h.frame(camera(f), t), "") << "frame " << f;
+    for (std::size_t slot = 0; slot < s.objs.size(); ++slot) {
+      const detail::Obj& o = s.objs[slot];
+      if (!o.under_tbv || o.tbv_epoch == epoch[slot]) continue;
+      epoch[slot] = o.tbv_epoch;
+      ++checked;
+      const double reach = o.max_speed * (o.tbv_expiry - t) * (1.0 - 1e-12);
+      for (int a = 0; a < 3; ++a) {
+        if (o.tbv_lo[a] > s.spec.bounds_min[a]) {
+          ASSERT_GE(o.box_lo()[a] - o.tbv_lo[a], reach) << "object " << o.id << " axis " << a << " frame " << f;
+        }
+        if (o.tbv_hi[a] < s.spec.bounds_max[a]) {
+          ASSERT_GE(o.tbv_hi[a] - o.box_hi()[a], reach) << "object " << o.id << " axis " << a << " frame " << f;
+        }
+      }
+    }
+  }
+  EXPECT_GT(checked, s.objs.size()) << "TBVs made and renewed";
+}
+
+TEST(TbvSeenSpace, EveryTbvHoldsWhereItsObjectCanReachBeforeItExpires) {
+  // Behind a wall (TBVs started long, started short and doubling, cut short
+  // by the seen space in front of it) and around a closed room with a
+  // turning eye; 12 s of frames, past the long TBVs' first renewals.
+  EngineHarness wall(wall_with_movers(), SceneOptions{}, "wall, far and near movers");
+  ASSERT_TRUE(wall.status().ok) << wall.status().str();
+  check_tbv_reach(wall, [](int) { return wall_camera(); }, 400);
+  EngineHarness room(room_with_hidden(100, 3.0, 77), SceneOptions{}, "closed room, 100 hidden");
+  ASSERT_TRUE(room.status().ok) << room.status().str();
+  check_tbv_reach(room, turning_camera, 400);
 }
 
 TEST(TbvSeenSpace, WithoutMemoryTheTurningViewerRevealsTbvs) {

@@ -75,11 +75,11 @@ struct SceneOptions {
   /// TBV validity period in seconds; 0 chooses one per object: the time to
   /// cross `tbv_voxels` voxels at max_speed, doubled each time the TBV expires
   /// unrevealed (an object hidden long gets longer-lived TBVs) up to the time
-  /// to cross `tbv_max_voxels`, reset when it is revealed; a TBV whose longest
-  /// box stays in space no viewer saw within `tbv_seen_memory` starts at the
-  /// longest (docs/design.md, "Temporal bounding volumes"). Each period is
-  /// scaled by a per-object factor in [0.5, 1.5) so that renewals do not come
-  /// in waves.
+  /// to cross `tbv_max_voxels`, reset when it is revealed; a TBV deep in
+  /// space no viewer saw within `tbv_seen_memory` starts long instead, as
+  /// wide as the cells holding it allow (docs/design.md, "Temporal bounding
+  /// volumes"). Each period is scaled by a per-object factor (in [0.5, 1.5),
+  /// or [0.75, 1) for those) so that renewals do not come in waves.
   double tbv_period = 0.0;
   double tbv_voxels = 2.0;
   double tbv_max_voxels = 8.0;
