@@ -395,10 +395,12 @@ bool Scene::Impl::recent_cell(const std::vector<double>& at, int l, const VoxBox
 
 bool Scene::Impl::unseen_range(const VoxBox& range) const {
   if (cell_any_seen_at.empty()) return false;
+  // Level 2 holds its cells' own whole records and their bricks' records:
+  // asked first, since where anything was seen it is most likely there.
+  if (recent_cell(cell_any_seen_at, 2, range)) return false;
   for (int l = 3; l < pyr.levels; ++l)
     if (recent_cell(cell_seen_at[static_cast<std::size_t>(l)], l, range)) return false;
-  // Level 2 holds its cells' own whole records and their bricks' records.
-  return !recent_cell(cell_any_seen_at, 2, range);
+  return true;
 }
 
 std::uint64_t Scene::Impl::layer_seen(const VoxBox& range) const {
