@@ -103,6 +103,19 @@ struct Obj {
   /// The level-2 cells over tbv_voxels holding one entry for the TBV whole
   /// (Scene::Impl::tbv_coarse_cells); 0: entries as brick_add's.
   std::uint32_t tbv_coarse = 0;
+  /// The seen record's room around the object (unseen_growth towards its
+  /// longest TBV box, and room_brick), as last asked at centre room_center
+  /// and scene time room_at, while the record's seen_epoch was room_epoch
+  /// (0: never asked). Scene::Impl::seen_room.
+  std::uint64_t room_epoch = 0;
+  double room_at = 0.0, room = 0.0, room_brick = 0.0;
+  Vec3 room_center{0.0};
+  /// The last answer of Scene::Impl::quiet_tbv_box, asked the same way:
+  /// the first of its boxes found unseen (1 or 2), or 0 for neither.
+  std::uint64_t quiet_epoch = 0;
+  double quiet_at = 0.0;
+  Vec3 quiet_center{0.0};
+  int quiet_tier = 0;
 
   // A mesh (shape Mesh): its triangles and placement. The engine's centre
   // and half above are a box holding it: for a static mesh its placed
@@ -400,6 +413,12 @@ struct Scene::Impl {
   /// layer it grows through (unseen_range). Empty below three levels.
   std::vector<double> cell_any_seen_at;
   double last_seen_at = -std::numeric_limits<double>::infinity();  ///< Latest of seen_at.
+  /// Counts the changes to the seen record that can bring seen space nearer
+  /// a TBV: a voxel recorded seen that was not within the memory, a brick
+  /// or a whole cell newly recent (mark_seen). Forgetting only leaves more
+  /// room, so an answer about room given at one count holds, conservatively,
+  /// while the count stands (seen_room).
+  std::uint64_t seen_epoch = 1;
 
   // Beyond the grid.
   std::vector<std::uint32_t> outside_objs;
@@ -521,7 +540,7 @@ struct Scene::Impl {
   /// (unseen_around); its voxels, and the period that growth holds (scaled
   /// into [0.75, 1)). 0 when neither is unseen, outputs unset (also for
   /// automatic periods off or no seen record). make_tbv and renew_tbv.
-  double quiet_tbv_box(std::uint32_t slot, Vec3* lo, Vec3* hi, detail::VoxBox* vb) const;
+  double quiet_tbv_box(std::uint32_t slot, Vec3* lo, Vec3* hi, detail::VoxBox* vb);
   /// The per-object, per-renewal factor in [0.5, 1.5) that periods are
   /// scaled by (full_tbv_box).
   double period_scale(std::uint32_t slot) const;
@@ -530,12 +549,18 @@ struct Scene::Impl {
   /// The TBV box for the object's current centre and a period starting now;
   /// returns the (jittered) period. `cut` (if given) says whether seen space
   /// cut the growth short.
-  double tbv_box(std::uint32_t slot, Vec3* lo, Vec3* hi, bool* cut = nullptr) const;
+  double tbv_box(std::uint32_t slot, Vec3* lo, Vec3* hi, bool* cut = nullptr);
   /// tbv_box's two steps: the box grown by the whole (jittered) period,
   /// which it returns, and that box cut by seen space (returns the period
   /// left).
   double full_tbv_box(std::uint32_t slot, Vec3* lo, Vec3* hi) const;
-  double cut_tbv_box(std::uint32_t slot, double period, Vec3* lo, Vec3* hi, bool* cut) const;
+  double cut_tbv_box(std::uint32_t slot, double period, Vec3* lo, Vec3* hi, bool* cut);
+  /// unseen_growth of object `slot` towards its longest TBV box (the longest
+  /// period at its largest scale; it holds every box full_tbv_box makes, so
+  /// the room is no more than towards any of them), and its room_brick:
+  /// asked again only when the object moved, the seen record changed
+  /// (seen_epoch) or tbv_seen_memory passed since last asked.
+  double seen_room(std::uint32_t slot, double* room_brick);
   void drop_tbv(std::uint32_t slot);
   /// How far (world units, on every side) the box of object `o` may grow
   /// towards the TBV box [lo, hi] and stay half a voxel clear of every voxel

@@ -266,7 +266,7 @@ double Scene::Impl::max_period(const Obj& o) const {
   return std::clamp(options.tbv_max_voxels * vmin / o.max_speed, kMinTbvPeriod, options.tbv_max_period);
 }
 
-double Scene::Impl::tbv_box(std::uint32_t slot, Vec3* lo_out, Vec3* hi_out, bool* cut) const {
+double Scene::Impl::tbv_box(std::uint32_t slot, Vec3* lo_out, Vec3* hi_out, bool* cut) {
   const double period = full_tbv_box(slot, lo_out, hi_out);
   return cut_tbv_box(slot, period, lo_out, hi_out, cut);
 }
@@ -300,7 +300,7 @@ double Scene::Impl::full_tbv_box(std::uint32_t slot, Vec3* lo_out, Vec3* hi_out)
   return period;
 }
 
-double Scene::Impl::cut_tbv_box(std::uint32_t slot, double period, Vec3* lo_out, Vec3* hi_out, bool* cut) const {
+double Scene::Impl::cut_tbv_box(std::uint32_t slot, double period, Vec3* lo_out, Vec3* hi_out, bool* cut) {
   if (cut) *cut = false;
   const Obj& o = objs[slot];
   const double grow = o.max_speed * period;
@@ -315,7 +315,7 @@ double Scene::Impl::cut_tbv_box(std::uint32_t slot, double period, Vec3* lo_out,
   const double vmin = std::fmin(spec.voxel_size.x, std::fmin(spec.voxel_size.y, spec.voxel_size.z));
   double room_brick = 0.0;
   const double floor = 0.25 * options.tbv_voxels * vmin;
-  double room = unseen_growth(o, *lo_out, *hi_out, &room_brick);
+  double room = seen_room(slot, &room_brick);
   if (room_brick >= floor) room = room_brick;
   const double cut_period = grow > 0.0 ? period * (room / grow) : 0.0;
   if (room < grow && room >= floor && cut_period >= kMinTbvPeriod) {
@@ -325,6 +325,22 @@ double Scene::Impl::cut_tbv_box(std::uint32_t slot, double period, Vec3* lo_out,
     return cut_period;
   }
   return period;
+}
+
+double Scene::Impl::seen_room(std::uint32_t slot, double* room_brick) {
+  Obj& o = objs[slot];
+  if (o.room_epoch != seen_epoch || o.room_center != o.center || !(time - o.room_at <= options.tbv_seen_memory)) {
+    const double grow = o.max_speed * 1.5 * max_period(o);
+    const Vec3 blo = o.box_lo(), bhi = o.box_hi();
+    const Vec3 lo = glm::min(blo, glm::max(blo - grow, spec.bounds_min));
+    const Vec3 hi = glm::max(bhi, glm::min(bhi + grow, spec.bounds_max));
+    o.room = unseen_growth(o, lo, hi, &o.room_brick);
+    o.room_epoch = seen_epoch;
+    o.room_center = o.center;
+    o.room_at = time;
+  }
+  *room_brick = o.room_brick;
+  return o.room;
 }
 
 double Scene::Impl::unseen_growth(const Obj& o, const Vec3& lo, const Vec3& hi, double* room_brick) const {
@@ -427,6 +443,7 @@ void Scene::Impl::mark_seen(Scratch::Impl& w, double t) {
     if (!(at >= t)) at = t;
   };
   for (const auto& [level, cell] : w.seen_cells) {
+    if (!(t - cell_seen_at[level][cell] <= options.tbv_seen_memory)) ++seen_epoch;
     cell_seen_at[level][cell] = t;
     if (level == 2 && !cell_any_seen_at.empty()) touch2(cell);
     last_seen_at = t;
@@ -435,7 +452,9 @@ void Scene::Impl::mark_seen(Scratch::Impl& w, double t) {
   const glm::ivec3 rb = pyr.res[1];
   for (std::uint32_t b : w.seen_list) {
     // A brick not seen within the memory forgets its old voxels.
-    seen_mask[b] = seen_recently(b) ? seen_mask[b] | w.seen_vox[b] : w.seen_vox[b];
+    const bool recent = seen_recently(b);
+    if ((recent ? w.seen_vox[b] & ~seen_mask[b] : w.seen_vox[b]) != 0) ++seen_epoch;
+    seen_mask[b] = recent ? seen_mask[b] | w.seen_vox[b] : w.seen_vox[b];
     seen_at[b] = t;
     w.seen_vox[b] = 0;
     last_seen_at = t;
@@ -449,8 +468,8 @@ void Scene::Impl::mark_seen(Scratch::Impl& w, double t) {
   w.seen_list.clear();
 }
 
-double Scene::Impl::quiet_tbv_box(std::uint32_t slot, Vec3* lo, Vec3* hi, VoxBox* vb) const {
-  const Obj& o = objs[slot];
+double Scene::Impl::quiet_tbv_box(std::uint32_t slot, Vec3* lo, Vec3* hi, VoxBox* vb) {
+  Obj& o = objs[slot];
   if (!(o.max_speed > 0.0) || options.tbv_period > 0.0 || cell_any_seen_at.empty() ||
       !(options.tbv_seen_memory > 0.0))
     return 0.0;
@@ -464,15 +483,28 @@ double Scene::Impl::quiet_tbv_box(std::uint32_t slot, Vec3* lo, Vec3* hi, VoxBox
   double widest = o.max_speed * options.tbv_max_period;
   for (int a = 0; a < 3; ++a)
     widest = std::fmin(widest, 0.5 * (31.0 * spec.voxel_size[a] - 2.0 * o.half[a]));
+  // The last answer stands while nothing newly seen came (seen_epoch), the
+  // object stayed and the memory has not passed: a box found unseen is
+  // still unseen, and one found seen can only have been forgotten since
+  // (then the answer is the more cautious one).
+  const bool known =
+      o.quiet_epoch == seen_epoch && o.quiet_center == o.center && time - o.quiet_at <= options.tbv_seen_memory;
+  const int first = known ? o.quiet_tier : 1;
+  if (!known) {
+    o.quiet_epoch = seen_epoch;
+    o.quiet_center = o.center;
+    o.quiet_at = time;
+  }
+  o.quiet_tier = 0;
   const Vec3 blo = o.box_lo(), bhi = o.box_hi();
-  for (const double grow : {std::fmax(widest, longest), longest}) {
+  for (int tier = std::max(first, 1); first != 0 && tier <= 2; ++tier) {
+    if (tier == 2 && !(widest > longest)) break;  // The same box as tier 1.
+    const double grow = tier == 1 ? std::fmax(widest, longest) : longest;
     const Vec3 l = glm::min(blo, glm::max(blo - grow, spec.bounds_min));
     const Vec3 h = glm::max(bhi, glm::min(bhi + grow, spec.bounds_max));
     const VoxBox v = touch_range(l, h, slop(std::fmax(max_abs(l), max_abs(h))));
-    if (!unseen_around(v)) {
-      if (widest > longest) continue;
-      return 0.0;
-    }
+    if (!(known && tier == first) && !unseen_around(v)) continue;
+    o.quiet_tier = tier;
     *lo = l;
     *hi = h;
     *vb = v;
