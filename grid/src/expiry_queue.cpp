@@ -22,6 +22,9 @@ bool before(const ExpiryEntry& a, const ExpiryEntry& b) {
   return std::tie(a.expiry, a.slot, a.epoch) < std::tie(b.expiry, b.slot, b.epoch);
 }
 
+/// The order of the heap beyond the ring: its front is the earliest.
+bool after(const ExpiryEntry& a, const ExpiryEntry& b) { return before(b, a); }
+
 }  // namespace
 
 std::int64_t ExpiryQueue::key(double expiry) {
@@ -52,8 +55,7 @@ void ExpiryQueue::put(const ExpiryEntry& e) {
     ++ring_size_;
   } else {
     far_.push_back(e);
-    far_min_key_ = std::min(far_min_key_, k);
-    far_earliest_ = std::fmin(far_earliest_, e.expiry);
+    std::push_heap(far_.begin(), far_.end(), after);
   }
 }
 
@@ -91,19 +93,11 @@ void ExpiryQueue::take_sorted(double t, std::vector<ExpiryEntry>* out) {
 }
 
 void ExpiryQueue::take_far(double t, std::vector<ExpiryEntry>* out) {
-  if (!(far_earliest_ <= t)) return;
-  const std::size_t first = out->size();
-  std::erase_if(far_, [&](const ExpiryEntry& e) {
-    if (e.expiry > t) return false;
-    out->push_back(e);
-    return true;
-  });
-  std::sort(out->begin() + static_cast<std::ptrdiff_t>(first), out->end(), before);
-  far_min_key_ = std::numeric_limits<std::int64_t>::max();
-  far_earliest_ = std::numeric_limits<double>::infinity();
-  for (const ExpiryEntry& e : far_) {
-    far_min_key_ = std::min(far_min_key_, key(e.expiry));
-    far_earliest_ = std::fmin(far_earliest_, e.expiry);
+  // The heap gives them in order of expiry, after every entry of the ring.
+  while (!far_.empty() && far_.front().expiry <= t) {
+    std::pop_heap(far_.begin(), far_.end(), after);
+    out->push_back(far_.back());
+    far_.pop_back();
   }
 }
 
@@ -149,16 +143,16 @@ std::size_t ExpiryQueue::first_filled() const {
 }
 
 void ExpiryQueue::settle() {
-  if (!far_.empty() && far_min_key_ - cursor_ < kBuckets) {
-    // The cursor came within reach of entries beyond the ring: they join.
-    std::vector<ExpiryEntry> far;
-    far.swap(far_);
-    far_min_key_ = std::numeric_limits<std::int64_t>::max();
-    far_earliest_ = std::numeric_limits<double>::infinity();
-    for (const ExpiryEntry& e : far) put(e);
+  // The cursor came within reach of entries beyond the ring: they join it,
+  // the earliest first, so that each moves once.
+  while (!far_.empty() && key(far_.front().expiry) - cursor_ < kBuckets) {
+    std::pop_heap(far_.begin(), far_.end(), after);
+    const ExpiryEntry e = far_.back();
+    far_.pop_back();
+    put(e);
   }
   if (ring_size_ == 0) {
-    earliest_ = far_earliest_;
+    earliest_ = far_.empty() ? std::numeric_limits<double>::infinity() : far_.front().expiry;
     return;
   }
   const std::size_t i = first_filled();

@@ -27,7 +27,7 @@ class ExpiryQueue {
  public:
   /// Scene seconds a bucket spans, and the ring's buckets (a power of two):
   /// 128 s in all, beyond the longest default period (60 s, scaled by up to
-  /// 1.5). Later entries wait in a list that joins the ring as it comes
+  /// 1.5). Later entries wait in a heap, joining the ring as it comes
   /// within reach. A bucket emptied gives its memory back, so the queue
   /// holds the ring (48 KiB) and about its entries.
   static constexpr double kBucketSeconds = 1.0 / 16.0;
@@ -72,10 +72,10 @@ class ExpiryQueue {
   /// The cursor's bucket is in descending order (a frame takes its due
   /// entries from the back); a push into it, or a new cursor, clears this.
   bool cursor_sorted_ = false;
-  /// Entries of keys at or beyond cursor_ + kBuckets, unordered.
+  /// Entries of keys at or beyond cursor_ + kBuckets, a heap with the
+  /// earliest at its front: as the cursor comes within reach they join the
+  /// ring one by one, each moved once.
   std::vector<ExpiryEntry> far_;
-  std::int64_t far_min_key_ = std::numeric_limits<std::int64_t>::max();
-  double far_earliest_ = std::numeric_limits<double>::infinity();
   double earliest_ = std::numeric_limits<double>::infinity();  ///< Least expiry of all.
 };
 

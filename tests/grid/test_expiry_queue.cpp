@@ -1,7 +1,8 @@
 // The TBVs' expiry queue (grid/src/expiry_queue.h): against a reference that
 // keeps every entry in one sorted list, over random pushes and frames —
 // frames a bucket apart and within one bucket, entries pushed earlier than
-// the last frame's time (renewed ahead), periods beyond the ring's span,
+// the last frame's time (renewed ahead), periods beyond the ring's span
+// (frames far apart and at frame rate),
 // jumps of hours, negative times — the queue answers the same due entries
 // in the same order, and says the same whether anything is due.
 #include <gtest/gtest.h>
@@ -132,6 +133,14 @@ TEST(ExpiryQueue, PeriodsBeyondTheRingAgreeWithTheReference) {
   r.max_period = 3.0 * ExpiryQueue::kBucketSeconds * ExpiryQueue::kBuckets;
   r.frame_dt = 2.0;
   run_against_reference(r, 3000, 4);
+}
+
+TEST(ExpiryQueue, ManyLongPeriodsAtFrameRateAgreeWithTheReference) {
+  // Frames at 60 Hz, most entries beyond the ring, joining it a few at a
+  // time as the frames go.
+  QueueRun r;
+  r.max_period = 4.0 * ExpiryQueue::kBucketSeconds * ExpiryQueue::kBuckets;
+  run_against_reference(r, 4000, 7);
 }
 
 TEST(ExpiryQueue, JumpsOfHoursAndNegativeTimesAgreeWithTheReference) {
