@@ -587,7 +587,14 @@ void Scene::Impl::renew_tbv(std::uint32_t slot, double now) {
                          : touch_range(ulo, uhi, slop(std::fmax(max_abs(ulo), max_abs(uhi))));
   const bool quiet = at_quiet || unseen_around(uvb);
   bool cut = false;
-  if (!quiet) period = cut_tbv_box(slot, period, &lo, &hi, &cut);
+  if (at_quiet && (ulo != lo || uhi != hi)) {
+    // The old box was wider (the cells around it held it whole, and seen
+    // space has come into them since): the quiet box replaces it, as a cut
+    // one does.
+    cut = true;
+  } else if (!quiet) {
+    period = cut_tbv_box(slot, period, &lo, &hi, &cut);
+  }
   // Entries are written per range of bricks (its coarsest cells), so a
   // range that did not change writes nothing, and one that changed is
   // written anew: the old entries go stale (a new generation), about the
