@@ -8,8 +8,8 @@
 #   BUILD_DIR  build directory (default: <repo>/build)
 #   REPS       --benchmark_repetitions (default 5)
 # Afterwards it prints, when both ran, the hidden_dynamic ratios
-# median_us(n:100000) / median_us(n:1000), point and region frames (the
-# goal is <= 1.20), and, when
+# median_us(n:100000) / median_us(n:1000), point and region frames, in
+# the first 10 s and at steady state (the goal is <= 1.20), and, when
 # it ran, the walkthrough's resolution ratio 200x120x200 / 100x60x100
 # (walkthrough/resolution: ratio_of_least; the goal is <= 1.5).
 set -euo pipefail
@@ -51,7 +51,8 @@ for b in data.get("benchmarks", []):
         med[name] = b["median_us"]
     if "ratio_of_least" in b:
         res[name] = b
-for pre, sfx in (("", ""), ("", "/ob:256"), ("/region", "/ob:256")):
+for pre, sfx in (("", ""), ("", "/ob:256"), ("/region", "/ob:256"), ("/steady", "/ob:256"),
+                 ("/steady/region", "/ob:256")):
     lo = med.get("hidden_dynamic" + pre + "/n:1000" + sfx)
     hi = med.get("hidden_dynamic" + pre + "/n:100000" + sfx)
     if lo and hi:
