@@ -100,13 +100,12 @@ struct Obj {
   Vec3 tbv_center{0.0};           ///< Centre the TBV was grown around.
   std::int32_t tbv_outside_pos = -1;
   VoxBox tbv_voxels;              ///< Voxels the TBV touches, clipped to the grid.
-  /// The level-2 cells over tbv_voxels holding one entry for the TBV whole
-  /// (Scene::Impl::tbv_coarse_cells); 0: entries as brick_add's.
-  std::uint32_t tbv_coarse = 0;
   /// The seen record's room around the object (unseen_growth towards its
   /// longest TBV box, and room_brick), as last asked at centre room_center
   /// and scene time room_at, while the record's seen_epoch was room_epoch
-  /// (0: never asked). Scene::Impl::seen_room.
+  /// (0: never asked). Scene::Impl::seen_room. (Before tbv_coarse, like
+  /// the next: a renewal reads them, and prefetch_obj fetches an object's
+  /// fields up to tbv_coarse.)
   std::uint64_t room_epoch = 0;
   double room_at = 0.0, room = 0.0, room_brick = 0.0;
   Vec3 room_center{0.0};
@@ -116,6 +115,9 @@ struct Obj {
   double quiet_at = 0.0;
   Vec3 quiet_center{0.0};
   int quiet_tier = 0;
+  /// The level-2 cells over tbv_voxels holding one entry for the TBV whole
+  /// (Scene::Impl::tbv_coarse_cells); 0: entries as brick_add's.
+  std::uint32_t tbv_coarse = 0;
 
   // A mesh (shape Mesh): its triangles and placement. The engine's centre
   // and half above are a box holding it: for a static mesh its placed
