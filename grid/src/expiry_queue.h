@@ -1,5 +1,5 @@
 // expiry_queue.h — the TBVs' expiry times as a calendar queue: a ring of
-// buckets, each a slice of scene time kBucketSeconds wide, and a list of the
+// buckets, each a slice of scene time kBucketSeconds wide, and a heap of the
 // entries beyond the ring's span. A frame takes every entry due at its time
 // from the few buckets its time reached, in passes over memory laid out in
 // order of expiry; a binary heap of 100,000 hidden movers' entries paid a
