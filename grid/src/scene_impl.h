@@ -543,9 +543,16 @@ struct Scene::Impl {
   /// into [0.75, 1)). 0 when neither is unseen, outputs unset (also for
   /// automatic periods off or no seen record). make_tbv and renew_tbv.
   double quiet_tbv_box(std::uint32_t slot, Vec3* lo, Vec3* hi, detail::VoxBox* vb);
-  /// The per-object, per-renewal factor in [0.5, 1.5) that periods are
-  /// scaled by (full_tbv_box).
+  /// The per-object, per-renewal factor in [kMaxPeriodScale - 1,
+  /// kMaxPeriodScale) that periods are scaled by (full_tbv_box).
   double period_scale(std::uint32_t slot) const;
+  static constexpr double kMaxPeriodScale = 1.5;
+  /// Object o's box grown by `grow` on every side, clamped to the grid's
+  /// bounds (never cutting the object's own box): every TBV box.
+  void grown_box(const detail::Obj& o, double grow, Vec3* lo, Vec3* hi) const;
+  /// The growth of o's longest period at its largest scale: its TBV box
+  /// then holds every box full_tbv_box makes for it.
+  double longest_growth(const detail::Obj& o) const;
   /// Gives an expired TBV a new validity period (see scene_tbv.cpp).
   void renew_tbv(std::uint32_t slot, double now);
   /// The TBV box for the object's current centre and a period starting now;

@@ -276,8 +276,20 @@ double Scene::Impl::period_scale(std::uint32_t slot) const {
   h = (h ^ (h >> 30)) * 0xbf58476d1ce4e5b9ull;
   h = (h ^ (h >> 27)) * 0x94d049bb133111ebull;
   h ^= h >> 31;
-  return 0.5 + static_cast<double>(h >> 11) * 0x1p-53;
+  return kMaxPeriodScale - 1.0 + static_cast<double>(h >> 11) * 0x1p-53;
 }
+
+void Scene::Impl::grown_box(const Obj& o, double grow, Vec3* lo, Vec3* hi) const {
+  // Growth stops at the grid's bounds (the object's own box never shrinks):
+  // beyond them the object can only get by a move, and a move that leaves
+  // the TBV reveals it (apply_moves). So a hidden object near the boundary
+  // costs nothing per frame instead of a frustum test beyond the grid.
+  const Vec3 blo = o.box_lo(), bhi = o.box_hi();
+  *lo = glm::min(blo, glm::max(blo - grow, spec.bounds_min));
+  *hi = glm::max(bhi, glm::min(bhi + grow, spec.bounds_max));
+}
+
+double Scene::Impl::longest_growth(const Obj& o) const { return o.max_speed * kMaxPeriodScale * max_period(o); }
 
 double Scene::Impl::full_tbv_box(std::uint32_t slot, Vec3* lo_out, Vec3* hi_out) const {
   const Obj& o = objs[slot];
@@ -289,14 +301,7 @@ double Scene::Impl::full_tbv_box(std::uint32_t slot, Vec3* lo_out, Vec3* hi_out)
   // and renewal, so that TBVs created together (say, 100,000 objects hidden
   // in the first frame) do not all expire in the same later frame.
   const double period = o.tbv_period * period_scale(slot);
-  const double grow = o.max_speed * period;
-  // Growth stops at the grid's bounds (the object's own box never shrinks):
-  // beyond them the object can only get by a move, and a move that leaves
-  // the TBV reveals it (apply_moves). So a hidden object near the boundary
-  // costs nothing per frame instead of a frustum test beyond the grid.
-  const Vec3 lo = o.box_lo(), hi = o.box_hi();
-  *lo_out = glm::min(lo, glm::max(lo - grow, spec.bounds_min));
-  *hi_out = glm::max(hi, glm::min(hi + grow, spec.bounds_max));
+  grown_box(o, o.max_speed * period, lo_out, hi_out);
   return period;
 }
 
@@ -304,7 +309,6 @@ double Scene::Impl::cut_tbv_box(std::uint32_t slot, double period, Vec3* lo_out,
   if (cut) *cut = false;
   const Obj& o = objs[slot];
   const double grow = o.max_speed * period;
-  const Vec3 lo = o.box_lo(), hi = o.box_hi();
   // Nor into space a viewer saw recently: a TBV there would be revealed at
   // once, waking an object that cannot be seen where it is. The growth (and
   // with it the period) is cut to what keeps clear of the seen voxels, so the
@@ -320,8 +324,7 @@ double Scene::Impl::cut_tbv_box(std::uint32_t slot, double period, Vec3* lo_out,
   const double cut_period = grow > 0.0 ? period * (room / grow) : 0.0;
   if (room < grow && room >= floor && cut_period >= kMinTbvPeriod) {
     if (cut) *cut = true;
-    *lo_out = glm::min(lo, glm::max(lo - room, spec.bounds_min));
-    *hi_out = glm::max(hi, glm::min(hi + room, spec.bounds_max));
+    grown_box(o, room, lo_out, hi_out);
     return cut_period;
   }
   return period;
@@ -330,10 +333,8 @@ double Scene::Impl::cut_tbv_box(std::uint32_t slot, double period, Vec3* lo_out,
 double Scene::Impl::seen_room(std::uint32_t slot, double* room_brick) {
   Obj& o = objs[slot];
   if (o.room_epoch != seen_epoch || o.room_center != o.center || !(time - o.room_at <= options.tbv_seen_memory)) {
-    const double grow = o.max_speed * 1.5 * max_period(o);
-    const Vec3 blo = o.box_lo(), bhi = o.box_hi();
-    const Vec3 lo = glm::min(blo, glm::max(blo - grow, spec.bounds_min));
-    const Vec3 hi = glm::max(bhi, glm::min(bhi + grow, spec.bounds_max));
+    Vec3 lo, hi;
+    grown_box(o, longest_growth(o), &lo, &hi);
     o.room = unseen_growth(o, lo, hi, &o.room_brick);
     o.room_epoch = seen_epoch;
     o.room_center = o.center;
@@ -479,7 +480,7 @@ double Scene::Impl::quiet_tbv_box(std::uint32_t slot, Vec3* lo, Vec3* hi, VoxBox
   // hold whole, never more than the longest period allowed. Failing that
   // (seen space within those cells), the longest period's growth at its
   // largest scale, which holds every box full_tbv_box makes.
-  const double longest = o.max_speed * 1.5 * max_period(o);
+  const double longest = longest_growth(o);
   double widest = o.max_speed * options.tbv_max_period;
   for (int a = 0; a < 3; ++a)
     widest = std::fmin(widest, 0.5 * (31.0 * spec.voxel_size[a] - 2.0 * o.half[a]));
@@ -496,12 +497,12 @@ double Scene::Impl::quiet_tbv_box(std::uint32_t slot, Vec3* lo, Vec3* hi, VoxBox
     o.quiet_at = time;
   }
   o.quiet_tier = 0;
-  const Vec3 blo = o.box_lo(), bhi = o.box_hi();
-  for (int tier = std::max(first, 1); first != 0 && tier <= 2; ++tier) {
+  // Tiers before `first` were found seen at the same count; none when 0.
+  for (int tier = first; tier >= 1 && tier <= 2; ++tier) {
     if (tier == 2 && !(widest > longest)) break;  // The same box as tier 1.
     const double grow = tier == 1 ? std::fmax(widest, longest) : longest;
-    const Vec3 l = glm::min(blo, glm::max(blo - grow, spec.bounds_min));
-    const Vec3 h = glm::max(bhi, glm::min(bhi + grow, spec.bounds_max));
+    Vec3 l, h;
+    grown_box(o, grow, &l, &h);
     const VoxBox v = touch_range(l, h, slop(std::fmax(max_abs(l), max_abs(h))));
     if (!(known && tier == first) && !unseen_around(v)) continue;
     o.quiet_tier = tier;
