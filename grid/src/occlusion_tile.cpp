@@ -64,7 +64,9 @@ __attribute__((target("avx2"))) bool tile_above_avx2(const float* tile, int c0, 
   return _mm256_testz_ps(below, cols) != 0;
 }
 
-__attribute__((target("avx2"))) TileResult raster_tile_avx2(float* tile, const TileJob& job) {
+// `tile` is never one of the job's offset arrays: with __restrict the
+// compiler keeps the planes' column offsets in registers across the rows.
+__attribute__((target("avx2"))) TileResult raster_tile_avx2(float* __restrict tile, const TileJob& job) {
   TileResult res;
   const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
   const __m256 cols = _mm256_castsi256_ps(_mm256_and_si256(_mm256_cmpgt_epi32(lane, _mm256_set1_epi32(job.c0 - 1)),
@@ -96,12 +98,17 @@ __attribute__((target("avx2"))) TileResult raster_tile_avx2(float* tile, const T
     lo = _mm256_min_ps(lo, r);
     hi = _mm256_max_ps(hi, r);
   }
-  alignas(32) float l[kTileW], h[kTileW];
-  _mm256_store_ps(l, lo);
-  _mm256_store_ps(h, hi);
-  float unused;
-  least_and_largest(l, kTileW, &res.min, &unused);
-  least_and_largest(h, kTileW, &unused, &res.max);
+  // Across the eight lanes: halves, then pairs, then neighbours. The bounds
+  // are never NaN or -0 (a bound is 0 or a value that compared above it), so
+  // the order of the comparisons does not change the result.
+  lo = _mm256_min_ps(lo, _mm256_permute2f128_ps(lo, lo, 1));
+  hi = _mm256_max_ps(hi, _mm256_permute2f128_ps(hi, hi, 1));
+  lo = _mm256_min_ps(lo, _mm256_shuffle_ps(lo, lo, 0x4E));
+  hi = _mm256_max_ps(hi, _mm256_shuffle_ps(hi, hi, 0x4E));
+  lo = _mm256_min_ps(lo, _mm256_shuffle_ps(lo, lo, 0xB1));
+  hi = _mm256_max_ps(hi, _mm256_shuffle_ps(hi, hi, 0xB1));
+  res.min = _mm256_cvtss_f32(lo);
+  res.max = _mm256_cvtss_f32(hi);
   return res;
 }
 
