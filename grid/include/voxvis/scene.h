@@ -83,7 +83,8 @@ struct SceneOptions {
   double tbv_period = 0.0;
   double tbv_voxels = 2.0;
   double tbv_max_voxels = 8.0;
-  /// Upper bound for any TBV validity period, seconds.
+  /// Longest period a TBV is given before the scaling `tbv_period` describes,
+  /// seconds: a TBV can last up to 1.5 times this.
   double tbv_max_period = 60.0;
   /// TBVs keep clear of space a viewer saw within this many seconds: their
   /// growth and period are cut to the distance to it (docs/design.md,
