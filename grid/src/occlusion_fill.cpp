@@ -15,9 +15,10 @@
 // planes, to an AVX2 instruction, or one at a time in the scalar reference:
 // the same values, the same decisions). An edge below zero over the whole
 // tile leaves the tile alone; one at or above its rounding allowance over
-// the whole tile needs no test per pixel; the others go to the kernel. A tile whose least bound is already at least the
-// occluder's largest, or at least the planes' largest over the tile, is
-// skipped (skipping only ever writes less).
+// the whole tile needs no test per pixel; the others go to the kernel. A
+// tile whose least bound is already at least the occluder's largest, or at
+// least the planes' largest over the tile, is skipped (skipping only ever
+// writes less).
 //
 // Per pixel, in single precision (occlusion_tile.h), re-centred on the tile:
 // f = fl(fl(fl(Et - m) + fl(fl(gy) dj)) + fl(fl(gx) di)), di < 8, dj < 4.
@@ -160,13 +161,12 @@ bool setup_fill(const ConvexOccluder& occ, BufferFault fault, double near, int w
   return true;
 }
 
-/// The edges at the tile whose first pixel is (I0, J0): each edge's value
-/// v there, less its single-precision allowance m = 2^-20 |v| + m0, as the
-/// float the kernel starts from into at[k], and a
-/// bit in *partial for each edge that does not pass the whole tile; false
-/// when an edge is below zero over the whole tile. Both versions compute the
-/// same values (v = (c + gx I0) + gy J0) and decide
-/// alike.
+/// The edges at the tile whose first pixel is (I0, J0): each edge's value v
+/// there less its single-precision allowance m = 2^-20 |v| + m0, as the
+/// float the kernel starts from, into at[k], and a bit in *partial for each
+/// edge that does not pass the whole tile; false when an edge is below zero
+/// over the whole tile. Both versions compute the same values
+/// (v = (c + gx I0) + gy J0) and decide alike.
 bool edge_test_scalar(const FillSetup& s, int I0, int J0, float* at, std::uint32_t* partial) {
   std::uint32_t part = 0;
   for (int k = 0; k < s.edges; ++k) {
@@ -237,15 +237,16 @@ __attribute__((target("avx2"))) bool plane_step_avx2(const FillSetup& s, int I0,
   const __m256d fa = _mm256_andnot_pd(sign, a);
   if (_mm256_movemask_pd(_mm256_cmp_pd(fa, _mm256_set1_pd(kPlaneLimit), _CMP_NLE_UQ)) != 0) return false;
   const __m256d spread = _mm256_set1_pd(static_cast<double>(I0 + J0 + kTileW + kTileH));
-  const __m256d m = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(_mm256_set1_pd(kFloatAllowance), fa), _mm256_load_pd(s.pm0)),
-                                  _mm256_mul_pd(_mm256_load_pd(s.peps), spread));
+  const __m256d allow = _mm256_add_pd(_mm256_mul_pd(_mm256_set1_pd(kFloatAllowance), fa), _mm256_load_pd(s.pm0));
+  const __m256d m = _mm256_add_pd(allow, _mm256_mul_pd(_mm256_load_pd(s.peps), spread));
   alignas(16) float at[FillSetup::kLanes];
   _mm_store_ps(at, _mm256_cvtpd_ps(_mm256_sub_pd(a, m)));
   for (int k = 0; k < s.planes; ++k) job->plane[k].at = at[k];
   // The least of the four largest values (the padding's are infinite) and the cap.
   const __m256d hi = _mm256_add_pd(a, _mm256_load_pd(s.pup));
   const __m128d h2 = _mm_min_pd(_mm256_castpd256_pd128(hi), _mm256_extractf128_pd(hi, 1));
-  const double w_hi = _mm_cvtsd_f64(_mm_min_sd(_mm_min_sd(h2, _mm_unpackhi_pd(h2, h2)), _mm_set_sd(static_cast<double>(s.cap))));
+  const __m128d h1 = _mm_min_sd(h2, _mm_unpackhi_pd(h2, h2));
+  const double w_hi = _mm_cvtsd_f64(_mm_min_sd(h1, _mm_set_sd(static_cast<double>(s.cap))));
   return w_hi > static_cast<double>(tile_min);
 }
 #else
