@@ -64,9 +64,7 @@ __attribute__((target("avx2"))) bool tile_above_avx2(const float* tile, int c0, 
   return _mm256_testz_ps(below, cols) != 0;
 }
 
-// `tile` is never one of the job's offset arrays: with __restrict the
-// compiler keeps the planes' column offsets in registers across the rows.
-__attribute__((target("avx2"))) TileResult raster_tile_avx2(float* __restrict tile, const TileJob& job) {
+__attribute__((target("avx2"))) TileResult raster_tile_avx2(float* tile, const TileJob& job) {
   TileResult res;
   const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
   const __m256 cols = _mm256_castsi256_ps(_mm256_and_si256(_mm256_cmpgt_epi32(lane, _mm256_set1_epi32(job.c0 - 1)),
