@@ -589,9 +589,10 @@ void Scene::Impl::renew_tbv(std::uint32_t slot, double now) {
   const bool quiet = at_quiet || unseen_around(uvb);
   bool cut = false;
   if (at_quiet && (ulo != lo || uhi != hi)) {
-    // The old box was wider (the cells around it held it whole, and seen
-    // space has come into them since): the quiet box replaces it, as a cut
-    // one does.
+    // The old box reaches beyond the quiet one (it was a wider quiet box,
+    // and seen space has come into the cells around it since; or the object
+    // has moved inside it): the quiet box, which holds every place the
+    // object can reach before it expires, replaces it, as a cut one does.
     cut = true;
   } else if (!quiet) {
     period = cut_tbv_box(slot, period, &lo, &hi, &cut);
